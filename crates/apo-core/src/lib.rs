@@ -1,1 +1,39 @@
-//! placeholder
+//! # apo-core
+//!
+//! Absolute Policy Optimization (APO), Proximal APO (PAPO) and the baselines TRPO, PPO and
+//! A2C, written as Burn tensor graphs and generic over the Burn backend.
+//!
+//! * [`policy`], [`value`], [`distribution`] — the networks and their distributions;
+//! * [`buffer`] — the rollout buffer with one-step advantages, GAE and rewards-to-go;
+//! * [`objective`] — every objective, term by term, with the paper's names;
+//! * [`trust_region`] — conjugate gradient on Hessian-vector products, step scaling, line search;
+//! * [`proximal`] — Adam with KL early stopping, and the value update;
+//! * [`metrics`] — per-epoch statistics, the bound `J − k·Var` and its confidence;
+//! * [`learner`] — one object that updates a policy and a critic with any algorithm.
+
+pub mod buffer;
+pub mod config;
+pub mod distribution;
+pub mod flat;
+pub mod hvp;
+pub mod learner;
+pub mod metrics;
+pub mod mlp;
+pub mod objective;
+pub mod policy;
+pub mod proximal;
+pub mod tensor_batch;
+pub mod trust_region;
+pub mod value;
+
+pub use config::{AlgoConfig, Algorithm, ConfigError, HMaxMode};
+pub use learner::{Learner, UpdateReport};
+pub use metrics::EpisodeStats;
+pub use proximal::{ProximalConfig, ProximalReport};
+pub use trust_region::{LineSearchOutcome, TrustRegionConfig, TrustRegionReport};
+pub use buffer::{Batch, BufferLayout, RolloutBuffer};
+pub use distribution::DistParams;
+pub use objective::{ApoParams, HMax, Objective, ObjectiveTerms};
+pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
+pub use tensor_batch::TensorBatch;
+pub use value::{ValueConfig, ValueNet};

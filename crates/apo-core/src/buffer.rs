@@ -1,0 +1,167 @@
+//! The rollout buffer: what one epoch collected, and the per-path post-processing
+//! (one-step advantages, GAE advantages, rewards-to-go).
+//!
+//! For each step the buffer stores the observation, the action, its log-probability under
+//! the collecting policy π_j, π_j's distribution parameters, the critic's `V(s_t)` and the
+//! reward. When a path ends, [`RolloutBuffer::finish_path`] takes the value to bootstrap
+//! from: `0` when the episode terminated, `V(s_T)` of the last observation when it was
+//! truncated by the time limit or cut by the end of the epoch. It then computes, with
+//! `V(s_{T}) = last_value`:
+//!
+//! * `delta_t = r_t + γ V(s_{t+1}) − V(s_t)` — the one-step advantage `A(s, a, s')`;
+//! * `adv_t = Σ_l (γλ)^l delta_{t+l}` — GAE(γ, λ), normalized over the whole batch in [`RolloutBuffer::take`];
+//! * `ret_t = Σ_l γ^l r_{t+l} + γ^{T−t} last_value` — discounted rewards-to-go, the value targets.
+
+/// Host arrays of one epoch's transitions, ready to become tensors. Row-major.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Batch {
+    /// Number of transitions `n`.
+    pub len: usize,
+    /// Observations, `[n, observation_dim]`.
+    pub obs: Vec<f32>,
+    /// Actions, `[n, action_width]` (one-hot rows for discrete actions).
+    pub actions: Vec<f32>,
+    /// `log π_j(a_t | s_t)`, `[n]`.
+    pub logp: Vec<f32>,
+    /// π_j's distribution parameters, `[n, dist_width]` (Gaussian: means then log-stds; categorical: logits).
+    pub dist: Vec<f32>,
+    /// Critic values `V(s_t)` at collection time, `[n]`.
+    pub value: Vec<f32>,
+    /// One-step advantages `delta_t`, `[n]`.
+    pub delta: Vec<f32>,
+    /// GAE advantages, normalized to mean 0 and standard deviation 1, `[n]`.
+    pub adv: Vec<f32>,
+    /// Rewards-to-go, `[n]`.
+    pub ret: Vec<f32>,
+}
+
+/// Sizes of what is stored per step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BufferLayout {
+    /// Observation dimension.
+    pub observation_dim: usize,
+    /// Action width (action dimension, or number of actions for one-hot rows).
+    pub action_width: usize,
+    /// Width of the distribution parameters (2 × action dimension, or number of actions).
+    pub dist_width: usize,
+}
+
+/// Collects transitions over an epoch and post-processes each finished path.
+#[derive(Debug, Clone)]
+pub struct RolloutBuffer {
+    layout: BufferLayout,
+    gamma: f64,
+    lambda: f64,
+    batch: Batch,
+    rewards: Vec<f32>,
+    path_start: usize,
+}
+
+impl RolloutBuffer {
+    /// An empty buffer with room for `capacity` steps.
+    pub fn new(layout: BufferLayout, gamma: f64, lambda: f64, capacity: usize) -> Self {
+        let batch = Batch {
+            len: 0,
+            obs: Vec::with_capacity(capacity * layout.observation_dim),
+            actions: Vec::with_capacity(capacity * layout.action_width),
+            logp: Vec::with_capacity(capacity),
+            dist: Vec::with_capacity(capacity * layout.dist_width),
+            value: Vec::with_capacity(capacity),
+            delta: Vec::with_capacity(capacity),
+            adv: Vec::with_capacity(capacity),
+            ret: Vec::with_capacity(capacity),
+        };
+        Self { layout, gamma, lambda, batch, rewards: Vec::with_capacity(capacity), path_start: 0 }
+    }
+
+    /// The sizes this buffer stores.
+    pub fn layout(&self) -> BufferLayout {
+        self.layout
+    }
+
+    /// Number of steps stored.
+    pub fn len(&self) -> usize {
+        self.batch.len
+    }
+
+    /// Whether no step is stored.
+    pub fn is_empty(&self) -> bool {
+        self.batch.len == 0
+    }
+
+    /// Stores one step: `obs [observation_dim]`, `action [action_width]`, `dist [dist_width]`.
+    ///
+    /// # Panics
+    /// If a slice has the wrong length.
+    pub fn store(&mut self, obs: &[f32], action: &[f32], logp: f32, dist: &[f32], value: f32, reward: f32) {
+        assert_eq!(obs.len(), self.layout.observation_dim, "observation width");
+        assert_eq!(action.len(), self.layout.action_width, "action width");
+        assert_eq!(dist.len(), self.layout.dist_width, "distribution width");
+        let b = &mut self.batch;
+        b.obs.extend_from_slice(obs);
+        b.actions.extend_from_slice(action);
+        b.logp.push(logp);
+        b.dist.extend_from_slice(dist);
+        b.value.push(value);
+        self.rewards.push(reward);
+        b.len += 1;
+    }
+
+    /// Ends the current path, bootstrapping from `last_value` (0 when terminated,
+    /// `V(s_T)` when truncated or cut by the end of the epoch), and computes its
+    /// `delta`, (unnormalized) GAE advantages and rewards-to-go.
+    pub fn finish_path(&mut self, last_value: f32) {
+        let (start, end) = (self.path_start, self.batch.len);
+        let (gamma, gl) = (self.gamma, self.gamma * self.lambda);
+        let mut next_value = f64::from(last_value);
+        let mut adv_acc = 0.0f64;
+        let mut ret_acc = f64::from(last_value);
+        let mut delta = vec![0.0f32; end - start];
+        let mut adv = vec![0.0f32; end - start];
+        let mut ret = vec![0.0f32; end - start];
+        for t in (start..end).rev() {
+            let r = f64::from(self.rewards[t]);
+            let v = f64::from(self.batch.value[t]);
+            let d = r + gamma * next_value - v;
+            adv_acc = d + gl * adv_acc;
+            ret_acc = r + gamma * ret_acc;
+            delta[t - start] = d as f32;
+            adv[t - start] = adv_acc as f32;
+            ret[t - start] = ret_acc as f32;
+            next_value = v;
+        }
+        self.batch.delta.extend(delta);
+        self.batch.adv.extend(adv);
+        self.batch.ret.extend(ret);
+        self.path_start = end;
+    }
+
+    /// Takes the epoch's batch, with advantages normalized to mean 0 and standard
+    /// deviation 1, and empties the buffer.
+    ///
+    /// # Panics
+    /// If a path was left unfinished (call [`RolloutBuffer::finish_path`] first).
+    pub fn take(&mut self) -> Batch {
+        assert_eq!(self.path_start, self.batch.len, "take() with an unfinished path");
+        let mut batch = std::mem::take(&mut self.batch);
+        normalize(&mut batch.adv);
+        self.rewards.clear();
+        self.path_start = 0;
+        batch
+    }
+}
+
+/// Normalizes `x` in place to mean 0 and (population) standard deviation 1; a constant
+/// vector becomes all zeros.
+pub fn normalize(x: &mut [f32]) {
+    if x.is_empty() {
+        return;
+    }
+    let n = x.len() as f64;
+    let mean = x.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+    let var = x.iter().map(|&v| (f64::from(v) - mean).powi(2)).sum::<f64>() / n;
+    let std = var.sqrt().max(1e-8);
+    for v in x {
+        *v = ((f64::from(*v) - mean) / std) as f32;
+    }
+}

@@ -1,0 +1,213 @@
+//! The learner: a policy, a critic and their optimizers, updated once per epoch by any
+//! [`Algorithm`].
+//!
+//! The learner's networks live on `Autodiff<B>`. Rollouts should not call them per
+//! step: take a copy on the backend of your choice with [`Learner::policy_on`] /
+//! [`Learner::value_on`] after each update (for example an NdArray copy when `B` is a
+//! GPU backend, since batch-1 inference on a GPU is slow).
+
+use burn::backend::Autodiff;
+use burn::module::AutodiffModule;
+use burn::optim::adaptor::OptimizerAdaptor;
+use burn::optim::{Adam, AdamConfig};
+use burn::tensor::backend::Backend;
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+
+use crate::buffer::Batch;
+use crate::config::{AlgoConfig, ConfigError};
+use crate::flat::{flatten, from_host, to_host, unflatten};
+use crate::policy::{ActionKind, Policy, PolicyFamily};
+use crate::proximal::{proximal_update, value_update, ProximalReport};
+use crate::tensor_batch::TensorBatch;
+use crate::trust_region::{trust_region_step, LineSearchOutcome};
+use crate::value::{ValueConfig, ValueNet};
+
+type Ad<B> = Autodiff<B>;
+
+/// What one update did, for the epoch's log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UpdateReport {
+    /// `−objective` at θ_j (the policy loss before the update).
+    pub loss_pi: f64,
+    /// `mean_surr` at θ_j.
+    pub mean_surr: f64,
+    /// The MeanVariance term at θ_j (APO/PAPO).
+    pub mean_variance: Option<f64>,
+    /// The VarianceMean term at θ_j (APO/PAPO).
+    pub variance_mean: Option<f64>,
+    /// Mean KL(π_j ‖ π_{j+1}) over the batch.
+    pub kl: f64,
+    /// Mean entropy of π_j over the batch.
+    pub entropy: f64,
+    /// Value MSE before the value update.
+    pub loss_v: f64,
+    /// Trust-region line-search outcome (APO, TRPO).
+    pub line_search: Option<LineSearchOutcome>,
+    /// Proximal step report (PAPO, PPO, A2C).
+    pub proximal: Option<ProximalReport>,
+}
+
+/// A policy of family `F` and a value network, with their Adam states, on `Autodiff<B>`.
+pub struct Learner<B: Backend, F: PolicyFamily>
+where
+    F::Policy<Ad<B>>: AutodiffModule<Ad<B>>,
+{
+    family: F,
+    action: ActionKind,
+    config: AlgoConfig,
+    device: B::Device,
+    policy: F::Policy<Ad<B>>,
+    value: ValueNet<Ad<B>>,
+    policy_optim: OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>,
+    value_optim: OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>,
+    rng: StdRng,
+}
+
+fn adam() -> AdamConfig {
+    // PyTorch's defaults, as in the paper's implementation.
+    AdamConfig::new().with_epsilon(1e-8)
+}
+
+impl<B: Backend, F: PolicyFamily> Learner<B, F>
+where
+    F::Policy<Ad<B>>: AutodiffModule<Ad<B>>,
+{
+    /// A learner with freshly initialized networks. `action` must match what `family`'s
+    /// policies output; `seed` seeds Burn's initializers on `device` and the minibatch shuffling.
+    pub fn new(
+        family: F,
+        action: ActionKind,
+        value: &ValueConfig,
+        config: AlgoConfig,
+        device: &B::Device,
+        seed: u64,
+    ) -> Result<Self, ConfigError> {
+        config.validate()?;
+        B::seed(device, seed);
+        Ok(Self {
+            policy: family.init::<Ad<B>>(device),
+            value: value.init::<Ad<B>>(device),
+            family,
+            action,
+            config,
+            device: device.clone(),
+            policy_optim: adam().init(),
+            value_optim: adam().init(),
+            rng: StdRng::seed_from_u64(seed),
+        })
+    }
+
+    /// The hyperparameters.
+    pub fn config(&self) -> &AlgoConfig {
+        &self.config
+    }
+
+    /// The policy family.
+    pub fn family(&self) -> &F {
+        &self.family
+    }
+
+    /// The current policy parameters θ as host values, `[num_params]`.
+    pub fn policy_params(&self) -> Vec<f64> {
+        to_host(flatten(&self.policy))
+    }
+
+    /// The current value-network parameters as host values.
+    pub fn value_params(&self) -> Vec<f64> {
+        to_host(flatten(&self.value))
+    }
+
+    /// A copy of the current policy on backend `B2` (e.g. NdArray for rollouts).
+    pub fn policy_on<B2: Backend>(&self, device: &B2::Device) -> F::Policy<B2> {
+        unflatten(self.family.init::<B2>(device), from_host::<B2>(&self.policy_params(), device))
+    }
+
+    /// A copy of the current value network on backend `B2`, built from `value`'s sizes.
+    pub fn value_on<B2: Backend>(&self, value: &ValueConfig, device: &B2::Device) -> ValueNet<B2> {
+        unflatten(value.init::<B2>(device), from_host::<B2>(&self.value_params(), device))
+    }
+
+    /// The policy and value networks (for checkpoints).
+    pub fn networks(&self) -> (&F::Policy<Ad<B>>, &ValueNet<Ad<B>>) {
+        (&self.policy, &self.value)
+    }
+
+    /// The optimizers (for checkpoints).
+    pub fn optimizers(
+        &self,
+    ) -> (&OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>, &OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>) {
+        (&self.policy_optim, &self.value_optim)
+    }
+
+    /// Replaces the networks and optimizer states (when resuming from a checkpoint).
+    pub fn restore(
+        &mut self,
+        policy: F::Policy<Ad<B>>,
+        value: ValueNet<Ad<B>>,
+        policy_optim: OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>,
+        value_optim: OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>,
+        rng: StdRng,
+    ) {
+        self.policy = policy;
+        self.value = value;
+        self.policy_optim = policy_optim;
+        self.value_optim = value_optim;
+        self.rng = rng;
+    }
+
+    /// The minibatch-shuffling RNG (for checkpoints).
+    pub fn rng(&self) -> &StdRng {
+        &self.rng
+    }
+
+    /// One epoch's update of the policy (by the configured algorithm) and of the value
+    /// network, on `batch` collected by the current policy.
+    pub fn update(&mut self, batch: &Batch) -> UpdateReport {
+        let objective = self.config.objective();
+        let tb = TensorBatch::<B>::new(batch, self.action, &self.device);
+        let theta = self.policy_params();
+        let before = unflatten(self.family.init::<B>(&self.device), from_host::<B>(&theta, &self.device));
+        let dist = before.distribution(tb.obs.clone());
+        let entropy = to_host(dist.entropy().mean())[0];
+        let terms = objective.evaluate(&dist, &tb);
+        let scalar = |t: Option<burn::tensor::Tensor<B, 1>>| t.map(|t| to_host(t)[0]);
+
+        let tb1 = tb.lift::<Ad<B>>();
+        let (line_search, proximal) = if self.config.algo.is_trust_region() {
+            let report = trust_region_step(&self.family, &objective, &theta, &tb, &self.config.trust_region);
+            let leaf = from_host::<Ad<B>>(&report.theta, &self.device);
+            self.policy = unflatten(self.policy.clone(), leaf);
+            (Some(report.outcome), None)
+        } else {
+            let policy = self.policy.clone();
+            let (policy, report) = proximal_update(
+                policy,
+                &mut self.policy_optim,
+                &objective,
+                &tb1,
+                &self.config.policy_update,
+                &mut self.rng,
+            );
+            self.policy = policy;
+            (None, Some(report))
+        };
+        let (value, value_report) =
+            value_update(self.value.clone(), &mut self.value_optim, &tb1, &self.config.value_update, &mut self.rng);
+        self.value = value;
+
+        let after = self.policy_on::<B>(&self.device);
+        let kl = to_host(after.distribution(tb.obs.clone()).kl_from(&tb.dist_old).mean())[0];
+        UpdateReport {
+            loss_pi: -to_host(terms.objective)[0],
+            mean_surr: to_host(terms.mean_surr)[0],
+            mean_variance: scalar(terms.mean_variance),
+            variance_mean: scalar(terms.variance_mean),
+            kl,
+            entropy,
+            loss_v: value_report.loss_before,
+            line_search,
+            proximal,
+        }
+    }
+}

@@ -1,0 +1,141 @@
+//! The APO objective (paper eq. "apo optimization weighted sum version", practical form).
+//!
+//! With `ratio = exp(logp_θ − logp_old)`, and hyperparameters `k` (probability factor),
+//! `ω1` (stands for `‖μ‖∞ / (1 − γ²)`), `ω2` (stands for `|H|_max`):
+//!
+//! ```text
+//! mean_surr = mean(ratio · adv)
+//! mv        = ω1 · mean(| (ratio − 1) · delta² + 2 · ratio · delta · ω2 |)
+//! min_J_sq  = mean_surr² + 2 · mean(V) · mean_surr,
+//!             0 when mean_surr + mean(V) − bias < 0,
+//!             bias = 4γ · |mean(logp_old − logp_θ)| · max(adv) / (1 − γ)²
+//! vm        = (ω1 (1 − γ²) / k) · mean(|adv|² + 2 |adv| V) − min_J_sq
+//! objective = mean_surr − k (mv + vm)
+//! ```
+//!
+//! Every function here returns a `[1]` tensor unless said otherwise; inputs named
+//! `ratio`, `adv`, `delta`, `value`, `logp`, `logp_old` are `[batch]`.
+
+use burn::tensor::backend::Backend;
+use burn::tensor::Tensor;
+use serde::{Deserialize, Serialize};
+
+/// Where `|H(s, a, s')|_max` comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HMax {
+    /// A hyperparameter ω2 (the paper's choice, which it reports works better).
+    Fixed(f64),
+    /// Estimated from the batch and the current policy, per sample (paper eq. "H def"),
+    /// see [`estimated_h_max`].
+    Estimated,
+}
+
+/// Hyperparameters of the APO penalty.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ApoParams {
+    /// Probability factor `k ≥ 0`; `k = 0` is TRPO's surrogate.
+    pub k: f64,
+    /// ω1, standing for `‖μ‖∞ / (1 − γ²)`.
+    pub omega1: f64,
+    /// `|H|_max`: ω2 or estimated.
+    pub h_max: HMax,
+    /// Discount factor γ of the task.
+    pub gamma: f64,
+}
+
+/// `exp(logp − logp_old)` → `[batch]`.
+pub fn ratio<B: Backend>(logp: Tensor<B, 1>, logp_old: Tensor<B, 1>) -> Tensor<B, 1> {
+    (logp - logp_old).exp()
+}
+
+/// The importance-sampled surrogate `mean(ratio · adv)`.
+pub fn mean_surr<B: Backend>(ratio: Tensor<B, 1>, adv: Tensor<B, 1>) -> Tensor<B, 1> {
+    (ratio * adv).mean()
+}
+
+/// `t(r) = (r − 1) · delta² + 2 · r · delta · h` → `[batch]`: the sample form of
+/// `E_π[A²] − E_πj[A²] + 2 E_π[A] |H|_max` (the `|H|²` term is constant and dropped).
+pub fn variance_increment<B: Backend>(ratio: Tensor<B, 1>, delta: Tensor<B, 1>, h: Tensor<B, 1>) -> Tensor<B, 1> {
+    let delta_sq = delta.clone().square();
+    (ratio.clone().sub_scalar(1.0) * delta_sq) + (ratio * delta * h).mul_scalar(2.0)
+}
+
+/// MeanVariance term `mv = ω1 · mean(|t(ratio)|)`, with `h` the per-sample `|H|_max` (`[batch]`).
+pub fn mean_variance<B: Backend>(
+    ratio: Tensor<B, 1>,
+    delta: Tensor<B, 1>,
+    h: Tensor<B, 1>,
+    omega1: f64,
+) -> Tensor<B, 1> {
+    variance_increment(ratio, delta, h).abs().mean().mul_scalar(omega1)
+}
+
+/// The bias of the lower bound of `J`: `4γ · |mean(logp_old − logp)| · max(adv) / (1 − γ)²`.
+pub fn lower_bound_bias<B: Backend>(
+    logp: Tensor<B, 1>,
+    logp_old: Tensor<B, 1>,
+    adv: Tensor<B, 1>,
+    gamma: f64,
+) -> Tensor<B, 1> {
+    let scale = 4.0 * gamma / (1.0 - gamma).powi(2);
+    (logp_old - logp).mean().abs() * adv.max().mul_scalar(scale)
+}
+
+/// The minimal squared performance `min_J_sq = mean_surr² + 2 · mean(V) · mean_surr`,
+/// switched to 0 when `mean_surr + mean(V) − bias < 0` (the interval of `J` reaches zero).
+/// The switch is a condition, not differentiated.
+pub fn min_j_sq<B: Backend>(mean_surr: Tensor<B, 1>, mean_value: Tensor<B, 1>, bias: Tensor<B, 1>) -> Tensor<B, 1> {
+    let value = mean_surr.clone().square() + (mean_value.clone() * mean_surr.clone()).mul_scalar(2.0);
+    let off = (mean_surr + mean_value - bias).detach().lower_elem(0.0);
+    value.mask_fill(off, 0.0)
+}
+
+/// VarianceMean term `vm = (ω1 (1 − γ²) / k) · mean(|adv|² + 2 |adv| V) − min_J_sq`, for `k > 0`.
+pub fn variance_mean<B: Backend>(
+    adv: Tensor<B, 1>,
+    value: Tensor<B, 1>,
+    min_j_sq: Tensor<B, 1>,
+    omega1: f64,
+    gamma: f64,
+    k: f64,
+) -> Tensor<B, 1> {
+    let abs_adv = adv.abs();
+    let spread = (abs_adv.clone().square() + (abs_adv * value).mul_scalar(2.0)).mean();
+    spread.mul_scalar(omega1 * (1.0 - gamma * gamma) / k) - min_j_sq
+}
+
+/// The estimated `|H(s, a, s')|_max` per sample → `[batch]`:
+///
+/// `2γ(1+γ) ε / (1−γ)² · D̄_KL + |ratio · adv|`, with `ε = max |adv|`.
+///
+/// Approximations (documented in `docs/algorithms.md`): the maximum KL over states is
+/// replaced by the mean KL `kl_mean` (`[1]`, as the paper does for the trust region);
+/// `Ā(s) = E_{a∼π}[A_πj(s, a)]` is estimated by the importance-sampled `ratio · adv`; and
+/// along a sampled trajectory `γ η(s') − η(s) = −Ā(s)`, so the second term of the paper's
+/// bound reduces to `|Ā(s)|`.
+pub fn estimated_h_max<B: Backend>(
+    ratio: Tensor<B, 1>,
+    adv: Tensor<B, 1>,
+    kl_mean: Tensor<B, 1>,
+    gamma: f64,
+) -> Tensor<B, 1> {
+    let scale = 2.0 * gamma * (1.0 + gamma) / (1.0 - gamma).powi(2);
+    let eps = adv.clone().abs().max();
+    let first = (eps * kl_mean).mul_scalar(scale);
+    (ratio * adv).abs() + first
+}
+
+/// The per-sample `|H|_max` for `params` → `[batch]`; `kl_mean` is only evaluated in the
+/// estimated mode.
+pub fn h_max<B: Backend>(
+    params: &ApoParams,
+    ratio: Tensor<B, 1>,
+    adv: Tensor<B, 1>,
+    kl_mean: impl FnOnce() -> Tensor<B, 1>,
+) -> Tensor<B, 1> {
+    match params.h_max {
+        HMax::Fixed(omega2) => Tensor::full(ratio.dims(), omega2, &ratio.device()),
+        HMax::Estimated => estimated_h_max(ratio, adv, kl_mean(), params.gamma),
+    }
+}

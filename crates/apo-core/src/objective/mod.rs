@@ -1,0 +1,114 @@
+//! The policy objectives, as Burn graphs to be maximized.
+//!
+//! * [`apo`] — APO's surrogate lower bound of `B_k = J − k·V` (trust region).
+//! * [`papo`] — the same with PPO-style clipping (proximal).
+//! * TRPO's surrogate `mean(ratio · adv)`, PPO's clipped surrogate and A2C's
+//!   `mean(logp · adv)` are [`Objective::Trpo`], [`Objective::Ppo`] and [`Objective::A2c`].
+
+pub mod apo;
+pub mod papo;
+
+use burn::tensor::backend::Backend;
+use burn::tensor::Tensor;
+
+use crate::distribution::DistParams;
+use crate::tensor_batch::TensorBatch;
+pub use apo::{ApoParams, HMax};
+
+/// Which objective an update maximizes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Objective {
+    /// TRPO's surrogate `mean(ratio · adv)`.
+    Trpo,
+    /// APO: `mean_surr − k (mv + vm)`.
+    Apo(ApoParams),
+    /// PPO's clipped surrogate with clip ε.
+    Ppo {
+        /// Clip ε.
+        clip: f64,
+    },
+    /// PAPO: APO's terms with the ratio clipped to `[1 − clip, 1 + clip]`.
+    Papo {
+        /// APO's hyperparameters.
+        params: ApoParams,
+        /// Clip ε.
+        clip: f64,
+    },
+    /// A2C's policy-gradient objective `mean(logp · adv)`.
+    A2c,
+}
+
+/// The value of an objective and its named terms, each `[1]`.
+#[derive(Debug, Clone)]
+pub struct ObjectiveTerms<B: Backend> {
+    /// The objective to maximize.
+    pub objective: Tensor<B, 1>,
+    /// The surrogate `mean_surr` (clipped for PPO/PAPO; `mean(logp · adv)` for A2C).
+    pub mean_surr: Tensor<B, 1>,
+    /// The MeanVariance term (APO/PAPO with `k > 0`).
+    pub mean_variance: Option<Tensor<B, 1>>,
+    /// The VarianceMean term (APO/PAPO with `k > 0`).
+    pub variance_mean: Option<Tensor<B, 1>>,
+}
+
+impl Objective {
+    /// Evaluates the objective for the policy's distributions `dist` on `batch`.
+    pub fn evaluate<B: Backend>(&self, dist: &DistParams<B>, batch: &TensorBatch<B>) -> ObjectiveTerms<B> {
+        let logp = dist.log_prob(batch.actions.clone());
+        match *self {
+            Objective::A2c => {
+                let mean_surr = (logp * batch.adv.clone()).mean();
+                Self::surrogate_only(mean_surr)
+            }
+            Objective::Trpo => {
+                let ratio = apo::ratio(logp, batch.logp_old.clone());
+                Self::surrogate_only(apo::mean_surr(ratio, batch.adv.clone()))
+            }
+            Objective::Ppo { clip } => {
+                let ratio = apo::ratio(logp, batch.logp_old.clone());
+                Self::surrogate_only(papo::clipped_mean_surr(ratio, batch.adv.clone(), clip))
+            }
+            Objective::Apo(params) => Self::absolute(&params, None, logp, dist, batch),
+            Objective::Papo { params, clip } => Self::absolute(&params, Some(clip), logp, dist, batch),
+        }
+    }
+
+    fn surrogate_only<B: Backend>(mean_surr: Tensor<B, 1>) -> ObjectiveTerms<B> {
+        ObjectiveTerms { objective: mean_surr.clone(), mean_surr, mean_variance: None, variance_mean: None }
+    }
+
+    /// APO (`clip = None`) or PAPO (`clip = Some(ε)`).
+    fn absolute<B: Backend>(
+        params: &ApoParams,
+        clip: Option<f64>,
+        logp: Tensor<B, 1>,
+        dist: &DistParams<B>,
+        batch: &TensorBatch<B>,
+    ) -> ObjectiveTerms<B> {
+        let ratio = apo::ratio(logp.clone(), batch.logp_old.clone());
+        let mean_surr = match clip {
+            None => apo::mean_surr(ratio.clone(), batch.adv.clone()),
+            Some(clip) => papo::clipped_mean_surr(ratio.clone(), batch.adv.clone(), clip),
+        };
+        if params.k == 0.0 {
+            return Self::surrogate_only(mean_surr);
+        }
+        let h = apo::h_max(params, ratio.clone(), batch.adv.clone(), || dist.kl_from(&batch.dist_old).mean());
+        let mv = match clip {
+            None => apo::mean_variance(ratio, batch.delta.clone(), h, params.omega1),
+            Some(clip) => papo::clipped_mean_variance(ratio, batch.delta.clone(), h, params.omega1, clip),
+        };
+        let bias = apo::lower_bound_bias(logp, batch.logp_old.clone(), batch.adv.clone(), params.gamma);
+        let min_j_sq = apo::min_j_sq(mean_surr.clone(), batch.value.clone().mean(), bias);
+        let vm = apo::variance_mean(
+            batch.adv.clone(),
+            batch.value.clone(),
+            min_j_sq,
+            params.omega1,
+            params.gamma,
+            params.k,
+        );
+        let objective = mean_surr.clone() - (mv.clone() + vm.clone()).mul_scalar(params.k);
+        ObjectiveTerms { objective, mean_surr, mean_variance: Some(mv), variance_mean: Some(vm) }
+    }
+}

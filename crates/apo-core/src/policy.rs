@@ -1,0 +1,140 @@
+//! Policies: the trait a policy module implements to be trained, and the built-in MLP policies.
+//!
+//! A policy maps a batch of observations to the parameters of its action distribution.
+//! The algorithms need the same policy on several backends (the plain backend for
+//! evaluation, `Autodiff<B>` for gradients, `Autodiff<Autodiff<B>>` for Hessian-vector
+//! products), so a policy is described by a [`PolicyFamily`]: a plain, serializable config
+//! that builds the module on any backend. Parameters move between the copies as one flat
+//! vector (see [`crate::flat`]).
+//!
+//! # Using your own policy
+//!
+//! ```ignore
+//! #[derive(Module, Debug)]
+//! struct MyPolicy<B: Backend> { /* layers */ }
+//!
+//! impl<B: Backend> Policy<B> for MyPolicy<B> {
+//!     fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> { /* … */ }
+//! }
+//!
+//! #[derive(Clone, Debug)]
+//! struct MyPolicyConfig { /* sizes */ }
+//!
+//! impl PolicyFamily for MyPolicyConfig {
+//!     type Policy<B: Backend> = MyPolicy<B>;
+//!     fn init<B: Backend>(&self, device: &B::Device) -> MyPolicy<B> { /* … */ }
+//! }
+//! ```
+//! See `examples/custom_policy.rs` for a complete program.
+
+use burn::module::{Module, Param};
+use burn::tensor::backend::Backend;
+use burn::tensor::Tensor;
+use serde::{Deserialize, Serialize};
+
+use crate::distribution::DistParams;
+use crate::mlp::Mlp;
+
+/// A stochastic policy module: observations → action-distribution parameters.
+///
+/// Everything an algorithm in this crate needs from a policy. The policy's float
+/// parameters (as visited by [`Module::visit`]) are the parameters θ that are optimized.
+pub trait Policy<B: Backend>: Module<B> {
+    /// `obs: [batch, observation_dim]` → the distribution of the action in each state.
+    /// The operations used must be twice differentiable for the trust-region algorithms
+    /// (all of Burn's elementwise float ops, `matmul`, `tanh`, `exp`, `log`, sums and means are).
+    fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B>;
+}
+
+/// A description of a policy that can build the same architecture on any backend.
+pub trait PolicyFamily: Clone + Send + Sync + std::fmt::Debug + 'static {
+    /// The policy module on backend `B`.
+    type Policy<B: Backend>: Policy<B>;
+
+    /// A freshly initialized policy on `device`.
+    fn init<B: Backend>(&self, device: &B::Device) -> Self::Policy<B>;
+}
+
+/// The kind of action a built-in policy produces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ActionKind {
+    /// A real vector of `dim` components (diagonal Gaussian policy).
+    Continuous {
+        /// Action dimension.
+        dim: usize,
+    },
+    /// One of `n` actions (categorical policy).
+    Discrete {
+        /// Number of actions.
+        n: usize,
+    },
+}
+
+impl ActionKind {
+    /// Width of the action as stored in a batch: `dim`, or `n` for a one-hot row.
+    pub fn width(&self) -> usize {
+        match *self {
+            ActionKind::Continuous { dim } => dim,
+            ActionKind::Discrete { n } => n,
+        }
+    }
+}
+
+/// Config of the built-in MLP policy (the paper's: tanh, (64, 64), state-independent log-std).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MlpPolicyConfig {
+    /// Observation dimension.
+    pub observation_dim: usize,
+    /// Action space.
+    pub action: ActionKind,
+    /// Hidden layer sizes.
+    pub hidden: Vec<usize>,
+    /// Initial log standard deviation of a Gaussian policy (SpinningUp's −0.5).
+    pub init_log_std: f64,
+}
+
+impl MlpPolicyConfig {
+    /// The paper's architecture for the given sizes.
+    pub fn new(observation_dim: usize, action: ActionKind) -> Self {
+        Self { observation_dim, action, hidden: vec![64, 64], init_log_std: -0.5 }
+    }
+}
+
+/// The built-in MLP policy: a diagonal Gaussian with a state-independent log-std, or a categorical.
+#[derive(Module, Debug)]
+pub struct MlpPolicy<B: Backend> {
+    /// The network producing the means (Gaussian) or the logits (categorical).
+    pub net: Mlp<B>,
+    /// State-independent log standard deviations `[action_dim]` (Gaussian only).
+    pub log_std: Option<Param<Tensor<B, 1>>>,
+}
+
+impl<B: Backend> Policy<B> for MlpPolicy<B> {
+    fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
+        let out = self.net.forward(obs);
+        match &self.log_std {
+            Some(log_std) => {
+                let dims = out.dims();
+                let log_std = log_std.val().unsqueeze_dim::<2>(0).expand(dims);
+                DistParams::Gaussian { mean: out, log_std }
+            }
+            None => DistParams::Categorical { logits: out },
+        }
+    }
+}
+
+impl PolicyFamily for MlpPolicyConfig {
+    type Policy<B: Backend> = MlpPolicy<B>;
+
+    fn init<B: Backend>(&self, device: &B::Device) -> MlpPolicy<B> {
+        let out = self.action.width();
+        let net = Mlp::new(self.observation_dim, &self.hidden, out, device);
+        let log_std = match self.action {
+            ActionKind::Continuous { dim } => {
+                Some(Param::from_tensor(Tensor::full([dim], self.init_log_std, device)))
+            }
+            ActionKind::Discrete { .. } => None,
+        };
+        MlpPolicy { net, log_std }
+    }
+}

@@ -1,0 +1,126 @@
+//! The proximal step of PPO, PAPO and A2C (Adam with KL early stopping), and the value
+//! update shared by every algorithm (Adam on the mean squared error to the rewards-to-go).
+
+use burn::module::AutodiffModule;
+use burn::optim::{GradientsParams, Optimizer};
+use burn::tensor::backend::AutodiffBackend;
+use rand::seq::SliceRandom;
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::flat::to_host;
+use crate::objective::Objective;
+use crate::policy::Policy;
+use crate::tensor_batch::TensorBatch;
+use crate::value::ValueNet;
+
+/// Settings of an Adam-based update.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ProximalConfig {
+    /// Adam learning rate (paper: 3e-4 for policies, 1e-3 for the value).
+    pub lr: f64,
+    /// Passes over the batch (paper: 80).
+    pub iters: usize,
+    /// Stop before a gradient step once the approximate KL `mean(logp_old − logp)` of the
+    /// step's (mini)batch exceeds this (paper: 0.02); `None` never stops early.
+    pub target_kl: Option<f64>,
+    /// Minibatch size; `None` is full-batch (the default).
+    pub minibatch_size: Option<usize>,
+}
+
+/// What a proximal policy update did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProximalReport {
+    /// Gradient steps taken.
+    pub steps: usize,
+    /// Whether the KL early stop fired.
+    pub stopped_early: bool,
+    /// The last approximate KL measured.
+    pub approx_kl: f64,
+}
+
+/// The (mini)batches of one pass: `batch` split into shuffled chunks of `size` rows, or
+/// the whole batch when `size` is `None` or not smaller than the batch.
+fn split<AB: AutodiffBackend>(batch: &TensorBatch<AB>, size: Option<usize>, rng: &mut impl Rng) -> Vec<TensorBatch<AB>> {
+    let n = batch.len();
+    match size.filter(|&s| s > 0 && s < n) {
+        None => vec![batch.clone()],
+        Some(size) => {
+            let mut idx: Vec<usize> = (0..n).collect();
+            idx.shuffle(rng);
+            idx.chunks(size).map(|c| batch.select(c)).collect()
+        }
+    }
+}
+
+/// Up to `config.iters` passes of Adam ascending `objective` on `batch`, stopping early
+/// when the approximate KL exceeds `config.target_kl`.
+pub fn proximal_update<AB, P, O>(
+    mut policy: P,
+    optim: &mut O,
+    objective: &Objective,
+    batch: &TensorBatch<AB>,
+    config: &ProximalConfig,
+    rng: &mut impl Rng,
+) -> (P, ProximalReport)
+where
+    AB: AutodiffBackend,
+    P: Policy<AB> + AutodiffModule<AB>,
+    O: Optimizer<P, AB>,
+{
+    let mut report = ProximalReport { steps: 0, stopped_early: false, approx_kl: 0.0 };
+    for _ in 0..config.iters {
+        for part in &split(batch, config.minibatch_size, rng) {
+            let dist = policy.distribution(part.obs.clone());
+            if let Some(target) = config.target_kl {
+                let logp = dist.log_prob(part.actions.clone());
+                report.approx_kl = to_host((part.logp_old.clone() - logp).mean().detach())[0];
+                if report.approx_kl > target {
+                    report.stopped_early = true;
+                    return (policy, report);
+                }
+            }
+            let loss = objective.evaluate(&dist, part).objective.neg();
+            let grads = GradientsParams::from_grads(loss.backward(), &policy);
+            policy = optim.step(config.lr, policy, grads);
+            report.steps += 1;
+        }
+    }
+    (policy, report)
+}
+
+/// What a value update did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ValueReport {
+    /// Mean squared error to the rewards-to-go before the update.
+    pub loss_before: f64,
+    /// Mean squared error on the last step's (mini)batch, just before that step.
+    pub loss_after: f64,
+}
+
+/// `config.iters` passes of Adam descending `mean((V(s) − ret)²)` on `batch`
+/// (`target_kl` is ignored).
+pub fn value_update<AB, O>(
+    mut value: ValueNet<AB>,
+    optim: &mut O,
+    batch: &TensorBatch<AB>,
+    config: &ProximalConfig,
+    rng: &mut impl Rng,
+) -> (ValueNet<AB>, ValueReport)
+where
+    AB: AutodiffBackend,
+    O: Optimizer<ValueNet<AB>, AB>,
+{
+    let mse = |v: &ValueNet<AB>, part: &TensorBatch<AB>| (v.forward(part.obs.clone()) - part.ret.clone()).square().mean();
+    let loss_before = to_host(mse(&value, batch).detach())[0];
+    let mut loss_after = loss_before;
+    for _ in 0..config.iters {
+        for part in &split(batch, config.minibatch_size, rng) {
+            let loss = mse(&value, part);
+            loss_after = to_host(loss.clone().detach())[0];
+            let grads = GradientsParams::from_grads(loss.backward(), &value);
+            value = optim.step(config.lr, value, grads);
+        }
+    }
+    (value, ValueReport { loss_before, loss_after })
+}

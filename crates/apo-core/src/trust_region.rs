@@ -1,0 +1,222 @@
+//! The trust-region step of TRPO and APO.
+//!
+//! At θ_j, with `g = ∇ objective(θ_j)` and `F = ∇² mean KL(π_j ‖ π_θ)|θ_j` (applied as
+//! Hessian-vector products by double backward, plus `damping · I`):
+//!
+//! 1. `x ≈ F⁻¹ g` by conjugate gradient;
+//! 2. the full step `Δ = sqrt(2δ / xᵀFx) · x` — the maximizer of the linearized objective
+//!    inside the quadratic trust region `½ ΔᵀFΔ ≤ δ`;
+//! 3. backtracking: try `θ_j + ξ^i Δ` for `i = 0, 1, …` (ξ = 0.8, up to 100 tries) and accept
+//!    the first with mean KL ≤ δ and objective ≥ objective(θ_j); if none, keep θ_j.
+
+use burn::backend::Autodiff;
+use burn::tensor::backend::Backend;
+use serde::{Deserialize, Serialize};
+
+use crate::flat::{from_host, to_host, unflatten};
+use crate::hvp::{gradient, hessian_vector_product, Autodiff2};
+use crate::objective::Objective;
+use crate::policy::{Policy, PolicyFamily};
+use crate::tensor_batch::TensorBatch;
+
+/// Settings of the trust-region step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrustRegionConfig {
+    /// KL radius δ of the trust region (paper: 0.02).
+    pub max_kl: f64,
+    /// Maximum conjugate-gradient iterations.
+    pub cg_iters: usize,
+    /// Damping added to the Fisher matrix: `(F + damping · I) x = g`.
+    pub cg_damping: f64,
+    /// CG stops when the squared residual norm falls below this.
+    pub cg_residual_tol: f64,
+    /// Backtracking coefficient ξ (paper: 0.8).
+    pub backtrack_coeff: f64,
+    /// Maximum backtracking tries (paper: 100).
+    pub backtrack_iters: usize,
+}
+
+impl Default for TrustRegionConfig {
+    fn default() -> Self {
+        Self {
+            max_kl: 0.02,
+            cg_iters: 10,
+            cg_damping: 0.1,
+            cg_residual_tol: 1e-10,
+            backtrack_coeff: 0.8,
+            backtrack_iters: 100,
+        }
+    }
+}
+
+/// What conjugate gradient returned.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CgSolution {
+    /// The approximate solution `x` of `A x = b`.
+    pub x: Vec<f64>,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Squared norm of the final residual `b − A x`.
+    pub residual_sq: f64,
+}
+
+/// Solves `A x = b` for a symmetric positive-definite `A` given only as the product
+/// `avp(v) = A v`, starting from `x = 0`; stops after `max_iters` or when the squared
+/// residual norm is below `residual_tol`.
+pub fn conjugate_gradient(
+    mut avp: impl FnMut(&[f64]) -> Vec<f64>,
+    b: &[f64],
+    max_iters: usize,
+    residual_tol: f64,
+) -> CgSolution {
+    let mut x = vec![0.0; b.len()];
+    let mut r = b.to_vec();
+    let mut p = b.to_vec();
+    let mut r_dot = dot(&r, &r);
+    let mut iterations = 0;
+    while iterations < max_iters && r_dot >= residual_tol {
+        let ap = avp(&p);
+        let p_ap = dot(&p, &ap);
+        if p_ap <= 0.0 || !p_ap.is_finite() {
+            break;
+        }
+        let alpha = r_dot / p_ap;
+        axpy(alpha, &p, &mut x);
+        axpy(-alpha, &ap, &mut r);
+        let new_r_dot = dot(&r, &r);
+        let beta = new_r_dot / r_dot;
+        for (pi, ri) in p.iter_mut().zip(&r) {
+            *pi = ri + beta * *pi;
+        }
+        r_dot = new_r_dot;
+        iterations += 1;
+    }
+    CgSolution { x, iterations, residual_sq: r_dot }
+}
+
+/// `x · y`.
+pub fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a * b).sum()
+}
+
+/// `y += a · x`.
+fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += a * xi;
+    }
+}
+
+/// How the backtracking line search ended.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum LineSearchOutcome {
+    /// The step `ξ^try · Δ` was accepted (`try` counts from 0).
+    Accepted {
+        /// Index of the accepted try.
+        r#try: usize,
+    },
+    /// No try satisfied both conditions; θ_j was kept.
+    Rejected,
+    /// The gradient or the step was zero or not finite; θ_j was kept.
+    NoStep,
+}
+
+/// What one trust-region step did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrustRegionReport {
+    /// The new parameters (θ_j when the search failed).
+    pub theta: Vec<f64>,
+    /// The full step Δ before backtracking (zeros for [`LineSearchOutcome::NoStep`]).
+    pub full_step: Vec<f64>,
+    /// Line-search outcome.
+    pub outcome: LineSearchOutcome,
+    /// Objective at θ_j.
+    pub objective_before: f64,
+    /// Objective at the returned parameters.
+    pub objective_after: f64,
+    /// Mean KL(π_j ‖ π_new) at the returned parameters.
+    pub kl: f64,
+    /// CG iterations run.
+    pub cg_iterations: usize,
+    /// CG's final squared residual.
+    pub cg_residual_sq: f64,
+}
+
+/// Mean KL(π_j ‖ π_θ) and the objective at `theta`, without gradients.
+pub fn evaluate<B, F>(family: &F, objective: &Objective, theta: &[f64], batch: &TensorBatch<B>) -> (f64, f64)
+where
+    B: Backend,
+    F: PolicyFamily,
+{
+    let device = batch.adv.device();
+    let policy = unflatten(family.init::<B>(&device), from_host::<B>(theta, &device));
+    let dist = policy.distribution(batch.obs.clone());
+    let kl = dist.kl_from(&batch.dist_old).mean();
+    let obj = objective.evaluate(&dist, batch).objective;
+    (to_host(kl)[0], to_host(obj)[0])
+}
+
+/// One trust-region step from `theta` (θ_j, whose distributions are `batch.dist_old`).
+pub fn trust_region_step<B, F>(
+    family: &F,
+    objective: &Objective,
+    theta: &[f64],
+    batch: &TensorBatch<B>,
+    config: &TrustRegionConfig,
+) -> TrustRegionReport
+where
+    B: Backend,
+    F: PolicyFamily,
+{
+    let device = batch.adv.device();
+    let batch1 = batch.lift::<Autodiff<B>>();
+    let (objective_before, g) = gradient(&family.init::<Autodiff<B>>(&device), theta, &device, |p| {
+        objective.evaluate(&p.distribution(batch1.obs.clone()), &batch1).objective
+    });
+
+    let batch2 = batch1.lift::<Autodiff2<B>>();
+    let template2 = family.init::<Autodiff2<B>>(&device);
+    let fvp = |v: &[f64]| -> Vec<f64> {
+        let mut hv = hessian_vector_product::<B, _>(&template2, theta, v, &device, |p| {
+            p.distribution(batch2.obs.clone()).kl_from(&batch2.dist_old).mean()
+        });
+        axpy(config.cg_damping, v, &mut hv);
+        hv
+    };
+    let cg = conjugate_gradient(&fvp, &g, config.cg_iters, config.cg_residual_tol);
+    let x_fx = dot(&cg.x, &fvp(&cg.x));
+    let no_step = |full_step: Vec<f64>, outcome| TrustRegionReport {
+        theta: theta.to_vec(),
+        full_step,
+        outcome,
+        objective_before,
+        objective_after: objective_before,
+        kl: 0.0,
+        cg_iterations: cg.iterations,
+        cg_residual_sq: cg.residual_sq,
+    };
+    if !(x_fx > 0.0 && x_fx.is_finite()) {
+        return no_step(vec![0.0; theta.len()], LineSearchOutcome::NoStep);
+    }
+    let scale = (2.0 * config.max_kl / x_fx).sqrt();
+    let full_step: Vec<f64> = cg.x.iter().map(|xi| scale * xi).collect();
+
+    let mut fraction = 1.0;
+    for r#try in 0..config.backtrack_iters {
+        let candidate: Vec<f64> = theta.iter().zip(&full_step).map(|(t, s)| t + fraction * s).collect();
+        let (kl, objective_after) = evaluate(family, objective, &candidate, batch);
+        if kl <= config.max_kl && objective_after >= objective_before {
+            return TrustRegionReport {
+                theta: candidate,
+                full_step,
+                outcome: LineSearchOutcome::Accepted { r#try },
+                objective_before,
+                objective_after,
+                kl,
+                cg_iterations: cg.iterations,
+                cg_residual_sq: cg.residual_sq,
+            };
+        }
+        fraction *= config.backtrack_coeff;
+    }
+    no_step(full_step, LineSearchOutcome::Rejected)
+}
