@@ -1,7 +1,17 @@
 //! Environments for apo, with Gymnasium semantics.
 
+pub mod classic;
 pub mod env;
+pub mod error;
+pub mod registry;
+pub mod rng;
 pub mod space;
+pub mod vector;
+pub mod wrappers;
 
 pub use env::{Action, Env, StepInfo, Transition};
+pub use error::EnvError;
+pub use registry::{list, make, EnvSpec};
 pub use space::Space;
+pub use vector::{VecEnv, VecStep};
+pub use wrappers::{NormalizeObservation, RescaleAction, RunningMeanStd, TimeLimit};

@@ -1,0 +1,146 @@
+//! `CartPole-v1`: balance a pole on a cart (Barto, Sutton & Anderson 1983).
+
+use rand::Rng;
+
+use super::discrete_action;
+use crate::env::{Action, Env, StepInfo, Transition};
+use crate::rng::{entropy_rng, reseed, EnvRng};
+use crate::space::Space;
+
+const GRAVITY: f64 = 9.8;
+const MASS_CART: f64 = 1.0;
+const MASS_POLE: f64 = 0.1;
+const TOTAL_MASS: f64 = MASS_CART + MASS_POLE;
+/// Half the pole's length.
+const HALF_LENGTH: f64 = 0.5;
+const POLE_MASS_LENGTH: f64 = MASS_POLE * HALF_LENGTH;
+const FORCE_MAG: f64 = 10.0;
+const TAU: f64 = 0.02;
+/// The episode ends when the cart leaves `[-X_THRESHOLD, X_THRESHOLD]`.
+const X_THRESHOLD: f64 = 2.4;
+/// The episode ends when the pole leaves `[-THETA_THRESHOLD, THETA_THRESHOLD]` (12 degrees).
+const THETA_THRESHOLD: f64 = 12.0 * 2.0 * std::f64::consts::PI / 360.0;
+
+/// `CartPole-v1`: a pole hinged on a cart moving on a frictionless track.
+///
+/// - Observation `[x, ẋ, θ, θ̇]` in the box `±[4.8, f32::MAX, 24°, f32::MAX]`.
+/// - Action `Discrete(2)`: 0 pushes the cart left with force 10 N, 1 pushes it right.
+/// - Dynamics: explicit Euler with `tau = 0.02` s, gravity 9.8, cart 1 kg, pole 0.1 kg,
+///   half-length 0.5 m.
+/// - Reward 1 for every step, including the step that terminates (0 if stepped again after
+///   termination without a reset, as in Gymnasium).
+/// - Terminates when `|x| > 2.4` or `|θ| > 12°`; never truncates (use a time limit of 500).
+/// - Reset: each state component uniform in `[-0.05, 0.05)`.
+#[derive(Debug, Clone)]
+pub struct CartPole {
+    state: [f64; 4],
+    terminated: bool,
+    rng: EnvRng,
+    observation_space: Space,
+    action_space: Space,
+}
+
+impl CartPole {
+    /// A cart-pole with an entropy-seeded RNG and a random initial state; call
+    /// [`Env::reset`] to start an episode.
+    pub fn new() -> Self {
+        let high = [
+            (2.0 * X_THRESHOLD) as f32,
+            f32::MAX,
+            (2.0 * THETA_THRESHOLD) as f32,
+            f32::MAX,
+        ];
+        let mut env = Self {
+            state: [0.0; 4],
+            terminated: false,
+            rng: entropy_rng(),
+            observation_space: Space::Box {
+                low: high.iter().map(|h| -h).collect(),
+                high: high.to_vec(),
+            },
+            action_space: Space::Discrete { n: 2 },
+        };
+        env.sample_state();
+        env
+    }
+
+    /// The physical state `[x, ẋ, θ, θ̇]`.
+    pub fn state(&self) -> [f64; 4] {
+        self.state
+    }
+
+    /// Sets the physical state `[x, ẋ, θ, θ̇]` (for tests and demonstrations) and clears the
+    /// terminated flag.
+    pub fn set_state(&mut self, state: [f64; 4]) {
+        self.state = state;
+        self.terminated = false;
+    }
+
+    fn sample_state(&mut self) {
+        for s in &mut self.state {
+            *s = self.rng.random_range(-0.05..0.05);
+        }
+        self.terminated = false;
+    }
+
+    fn write_obs(&self, obs: &mut [f32]) {
+        for (o, s) in obs.iter_mut().zip(&self.state) {
+            *o = *s as f32;
+        }
+    }
+}
+
+impl Default for CartPole {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Env for CartPole {
+    fn observation_space(&self) -> &Space {
+        &self.observation_space
+    }
+
+    fn action_space(&self) -> &Space {
+        &self.action_space
+    }
+
+    fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
+        reseed(&mut self.rng, seed);
+        self.sample_state();
+        self.write_obs(obs);
+    }
+
+    fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
+        let force = if discrete_action(action, 2, "CartPole") == 1 {
+            FORCE_MAG
+        } else {
+            -FORCE_MAG
+        };
+        let [x, x_dot, theta, theta_dot] = self.state;
+        let (sin, cos) = theta.sin_cos();
+        let temp = (force + POLE_MASS_LENGTH * theta_dot * theta_dot * sin) / TOTAL_MASS;
+        let theta_acc = (GRAVITY * sin - cos * temp)
+            / (HALF_LENGTH * (4.0 / 3.0 - MASS_POLE * cos * cos / TOTAL_MASS));
+        let x_acc = temp - POLE_MASS_LENGTH * theta_acc * cos / TOTAL_MASS;
+        self.state = [
+            x + TAU * x_dot,
+            x_dot + TAU * x_acc,
+            theta + TAU * theta_dot,
+            theta_dot + TAU * theta_acc,
+        ];
+        let [x, _, theta, _] = self.state;
+        let terminated = !(-X_THRESHOLD..=X_THRESHOLD).contains(&x)
+            || !(-THETA_THRESHOLD..=THETA_THRESHOLD).contains(&theta);
+        // Gymnasium pays 1 up to and including the terminating step, 0 for steps after it.
+        let reward = if self.terminated { 0.0 } else { 1.0 };
+        self.terminated |= terminated;
+        self.write_obs(obs);
+        Transition {
+            reward,
+            terminated,
+            truncated: false,
+            info: StepInfo::default(),
+        }
+    }
+}

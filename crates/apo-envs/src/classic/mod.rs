@@ -1,0 +1,49 @@
+//! Classic-control environments in pure Rust, matching Gymnasium's published dynamics,
+//! rewards, termination rules, reset distributions and observation layouts.
+//!
+//! | environment | observation | action | reward | ends when |
+//! | --- | --- | --- | --- | --- |
+//! | [`CartPole`] (`CartPole-v1`) | 4 | `Discrete(2)` | 1 per step, the terminating one included | pole past 12° or cart past 2.4 |
+//! | [`Acrobot`] (`Acrobot-v1`) | 6 | `Discrete(3)` | −1, 0 on the terminating step | tip above the bar |
+//! | [`Pendulum`] (`Pendulum-v1`) | 3 | `Box[-2, 2]` | −(θ² + 0.1 θ̇² + 0.001 u²) | never |
+//! | [`MountainCarContinuous`] (`MountainCarContinuous-v0`) | 2 | `Box[-1, 1]` | −0.1 a², +100 at the goal | position ≥ 0.45 with velocity ≥ 0 |
+//!
+//! The environments never truncate: time limits come from [`crate::wrappers::TimeLimit`]
+//! (the registry in [`crate::registry`] applies Gymnasium's limits). The state is kept in `f64`
+//! and the observation written as `f32`. Each environment owns an [`crate::rng::EnvRng`]:
+//! `reset(Some(seed), …)` gives the same episode for the same seed.
+
+mod acrobot;
+mod cartpole;
+mod mountain_car;
+mod pendulum;
+
+pub use acrobot::Acrobot;
+pub use cartpole::CartPole;
+pub use mountain_car::MountainCarContinuous;
+pub use pendulum::Pendulum;
+
+use crate::env::Action;
+
+/// The index of a discrete `action` for an environment with `n` actions.
+///
+/// # Panics
+/// If `action` is not `Action::Discrete(i)` with `i < n`: passing an action outside the
+/// action space breaks the [`crate::Env::step`] contract.
+pub(crate) fn discrete_action(action: Action<'_>, n: usize, env: &str) -> usize {
+    match action {
+        Action::Discrete(i) if i < n => i,
+        other => panic!("{env}: expected a discrete action in 0..{n}, got {other:?}"),
+    }
+}
+
+/// The slice of a continuous `action` of dimension `dim`.
+///
+/// # Panics
+/// If `action` is not `Action::Continuous` of length `dim`.
+pub(crate) fn continuous_action<'a>(action: Action<'a>, dim: usize, env: &str) -> &'a [f32] {
+    match action {
+        Action::Continuous(a) if a.len() == dim => a,
+        other => panic!("{env}: expected a continuous action of dimension {dim}, got {other:?}"),
+    }
+}
