@@ -3,6 +3,7 @@
 pub mod classic;
 pub mod env;
 pub mod error;
+pub mod mujoco;
 pub mod registry;
 pub mod rng;
 pub mod space;

@@ -95,7 +95,7 @@ pub(crate) static CLASSIC: &[Entry] = &[
 ];
 
 /// Every table of the registry, searched in order. Add one line per family.
-pub(crate) static TABLES: &[&[Entry]] = &[CLASSIC];
+pub(crate) static TABLES: &[&[Entry]] = &[CLASSIC, crate::mujoco::ENTRIES];
 
 fn entries() -> impl Iterator<Item = &'static Entry> {
     TABLES.iter().flat_map(|table| table.iter())
