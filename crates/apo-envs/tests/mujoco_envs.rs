@@ -374,7 +374,8 @@ fn planar_runner_observations_drop_x_and_clip_velocities() {
 #[test]
 fn hopper_health_follows_the_published_ranges() {
     let mut env = make::<Hopper>();
-    let cases: [(&[(usize, f64)], &[(usize, f64)], bool); 8] = [
+    type Overrides = &'static [(usize, f64)];
+    let cases: [(Overrides, Overrides, bool); 8] = [
         (&[], &[], true),
         (&[(1, 0.71)], &[], true),
         (&[(1, 0.69)], &[], false),
