@@ -136,17 +136,47 @@ impl RolloutBuffer {
         self.path_start = end;
     }
 
+    /// Number of steps of the path in progress (0 right after [`RolloutBuffer::finish_path`]).
+    pub fn path_len(&self) -> usize {
+        self.batch.len - self.path_start
+    }
+
     /// Takes the epoch's batch, with advantages normalized to mean 0 and standard
     /// deviation 1, and empties the buffer.
     ///
     /// # Panics
     /// If a path was left unfinished (call [`RolloutBuffer::finish_path`] first).
     pub fn take(&mut self) -> Batch {
-        assert_eq!(self.path_start, self.batch.len, "take() with an unfinished path");
-        let mut batch = std::mem::take(&mut self.batch);
+        Self::take_all(std::slice::from_mut(self))
+    }
+
+    /// Takes the batches of several buffers (one per environment of a vector) as one
+    /// batch, in buffer order, with advantages normalized over all of it; empties them.
+    ///
+    /// # Panics
+    /// If a path was left unfinished in any buffer.
+    pub fn take_all(buffers: &mut [RolloutBuffer]) -> Batch {
+        let mut batch = Batch::default();
+        for buffer in buffers.iter_mut() {
+            assert_eq!(buffer.path_len(), 0, "take() with an unfinished path");
+            let part = std::mem::take(&mut buffer.batch);
+            buffer.rewards.clear();
+            buffer.path_start = 0;
+            if batch.len == 0 {
+                batch = part;
+                continue;
+            }
+            batch.len += part.len;
+            batch.obs.extend(part.obs);
+            batch.actions.extend(part.actions);
+            batch.logp.extend(part.logp);
+            batch.dist.extend(part.dist);
+            batch.value.extend(part.value);
+            batch.delta.extend(part.delta);
+            batch.adv.extend(part.adv);
+            batch.ret.extend(part.ret);
+        }
         normalize(&mut batch.adv);
-        self.rewards.clear();
-        self.path_start = 0;
         batch
     }
 }

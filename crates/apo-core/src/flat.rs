@@ -35,26 +35,31 @@ struct Distribute<B: Backend> {
 
 impl<B: Backend> ModuleMapper<B> for Distribute<B> {
     fn map_float<const D: usize>(&mut self, param: Param<Tensor<B, D>>) -> Param<Tensor<B, D>> {
+        // `lazy_shape` does not run a lazy initializer: replacing the parameters of a
+        // freshly built module draws no random numbers from the backend's global RNG.
+        let shape = param.lazy_shape();
+        let n = shape.num_elements();
         let start = self.offset;
-        param.map(|tensor| {
-            let dims = tensor.dims();
-            let n: usize = dims.iter().product();
-            self.offset += n;
-            self.theta.clone().slice([start..start + n]).reshape(dims)
-        })
+        self.offset += n;
+        let dims: [usize; D] = std::array::from_fn(|i| shape[i]);
+        Param::initialized(param.id, self.theta.clone().slice([start..start + n]).reshape(dims))
     }
 }
 
 /// `module` with its float parameters replaced by consecutive slices of `theta`
 /// (`[num_params]`, in the order of [`flatten`]). Parameter ids are kept, so optimizer
-/// state keyed by them stays valid.
+/// state keyed by them stays valid. Lazily initialized parameters are replaced without
+/// being initialized, so building a module only to unflatten into it is cheap and leaves
+/// the backend's RNG untouched.
 ///
 /// # Panics
-/// If `theta` does not have exactly `module.num_params()` elements.
+/// If `theta` does not have exactly as many elements as the module has parameters.
 pub fn unflatten<B: Backend, M: Module<B>>(module: M, theta: Tensor<B, 1>) -> M {
     let total = theta.dims()[0];
-    assert_eq!(total, module.num_params(), "flat parameter vector has the wrong length");
-    module.map(&mut Distribute { theta, offset: 0 })
+    let mut distribute = Distribute { theta, offset: 0 };
+    let module = module.map(&mut distribute);
+    assert_eq!(distribute.offset, total, "flat parameter vector has the wrong length");
+    module
 }
 
 /// A flat tensor's values on the host, as `f64`.

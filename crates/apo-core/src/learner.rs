@@ -11,8 +11,7 @@ use burn::module::AutodiffModule;
 use burn::optim::adaptor::OptimizerAdaptor;
 use burn::optim::{Adam, AdamConfig};
 use burn::tensor::backend::Backend;
-use rand::rngs::StdRng;
-use rand::SeedableRng;
+use rand::Rng;
 
 use crate::buffer::Batch;
 use crate::config::{AlgoConfig, ConfigError};
@@ -61,8 +60,9 @@ where
     value: ValueNet<Ad<B>>,
     policy_optim: OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>,
     value_optim: OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>,
-    rng: StdRng,
 }
+
+static INIT_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn adam() -> AdamConfig {
     // PyTorch's defaults, as in the paper's implementation.
@@ -74,7 +74,7 @@ where
     F::Policy<Ad<B>>: AutodiffModule<Ad<B>>,
 {
     /// A learner with freshly initialized networks. `action` must match what `family`'s
-    /// policies output; `seed` seeds Burn's initializers on `device` and the minibatch shuffling.
+    /// policies output; `seed` seeds Burn's initializers on `device`.
     pub fn new(
         family: F,
         action: ActionKind,
@@ -84,17 +84,26 @@ where
         seed: u64,
     ) -> Result<Self, ConfigError> {
         config.validate()?;
-        B::seed(device, seed);
+        let (policy, value) = {
+            // Burn's backends draw initial weights from one process-wide RNG: seed it and run
+            // every lazy initializer (by reading the parameters) while holding a lock, so that
+            // learners built concurrently with the same seed get the same weights.
+            let _guard = INIT_LOCK.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            B::seed(device, seed);
+            let policy = family.init::<Ad<B>>(device);
+            let value = value.init::<Ad<B>>(device);
+            let _ = (flatten(&policy), flatten(&value));
+            (policy, value)
+        };
         Ok(Self {
-            policy: family.init::<Ad<B>>(device),
-            value: value.init::<Ad<B>>(device),
+            policy,
+            value,
             family,
             action,
             config,
             device: device.clone(),
             policy_optim: adam().init(),
             value_optim: adam().init(),
-            rng: StdRng::seed_from_u64(seed),
         })
     }
 
@@ -147,23 +156,16 @@ where
         value: ValueNet<Ad<B>>,
         policy_optim: OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>,
         value_optim: OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>,
-        rng: StdRng,
     ) {
         self.policy = policy;
         self.value = value;
         self.policy_optim = policy_optim;
         self.value_optim = value_optim;
-        self.rng = rng;
-    }
-
-    /// The minibatch-shuffling RNG (for checkpoints).
-    pub fn rng(&self) -> &StdRng {
-        &self.rng
     }
 
     /// One epoch's update of the policy (by the configured algorithm) and of the value
-    /// network, on `batch` collected by the current policy.
-    pub fn update(&mut self, batch: &Batch) -> UpdateReport {
+    /// network, on `batch` collected by the current policy; `rng` shuffles minibatches.
+    pub fn update(&mut self, batch: &Batch, rng: &mut impl Rng) -> UpdateReport {
         let objective = self.config.objective();
         let tb = TensorBatch::<B>::new(batch, self.action, &self.device);
         let theta = self.policy_params();
@@ -187,13 +189,13 @@ where
                 &objective,
                 &tb1,
                 &self.config.policy_update,
-                &mut self.rng,
+                rng,
             );
             self.policy = policy;
             (None, Some(report))
         };
         let (value, value_report) =
-            value_update(self.value.clone(), &mut self.value_optim, &tb1, &self.config.value_update, &mut self.rng);
+            value_update(self.value.clone(), &mut self.value_optim, &tb1, &self.config.value_update, rng);
         self.value = value;
 
         let after = self.policy_on::<B>(&self.device);

@@ -16,6 +16,7 @@ pub mod config;
 pub mod distribution;
 pub mod flat;
 pub mod hvp;
+pub mod inference;
 pub mod learner;
 pub mod metrics;
 pub mod mlp;

@@ -1,0 +1,10 @@
+//! The library behind the `apo` binary: run configuration, the training loop, run
+//! directories, checkpoints, evaluation, plots and benchmarks.
+
+pub mod atomic;
+pub mod checkpoint;
+pub mod config;
+pub mod progress;
+pub mod trainer;
+
+pub use config::{BackendKind, RunConfig};

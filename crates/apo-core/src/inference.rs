@@ -1,0 +1,201 @@
+//! Rollout inference on the host: the built-in MLP policy and critic as plain `f32`
+//! arrays.
+//!
+//! The rollout is the hot path: one policy call per environment step. A Burn forward pass
+//! per step costs tensor allocations and, on a GPU backend, a device round trip for a batch
+//! of a few rows. So after each update the learner's MLPs are copied into these host
+//! networks (a few thousand floats), which compute `x·W + b` and `tanh` in plain loops with
+//! preallocated scratch buffers: no allocation per step.
+
+use burn::tensor::backend::Backend;
+use rand::Rng;
+use rand_distr::StandardNormal;
+
+use crate::mlp::Mlp;
+use crate::policy::{ActionKind, MlpPolicy};
+use crate::value::ValueNet;
+
+/// `0.5 * ln(2π)`.
+const HALF_LN_2PI: f32 = 0.918_938_5;
+
+#[derive(Debug, Clone)]
+struct HostLayer {
+    /// `[input, output]`, row-major.
+    weight: Vec<f32>,
+    /// `[output]`.
+    bias: Vec<f32>,
+    input: usize,
+    output: usize,
+}
+
+/// A host copy of an [`Mlp`].
+#[derive(Debug, Clone)]
+pub struct HostMlp {
+    layers: Vec<HostLayer>,
+    scratch: [Vec<f32>; 2],
+}
+
+impl HostMlp {
+    /// Copies `mlp`'s weights to the host.
+    pub fn from_mlp<B: Backend>(mlp: &Mlp<B>) -> Self {
+        let layers = mlp
+            .host_layers()
+            .into_iter()
+            .map(|(weight, bias)| HostLayer { input: weight.len() / bias.len(), output: bias.len(), weight, bias })
+            .collect();
+        Self { layers, scratch: [Vec::new(), Vec::new()] }
+    }
+
+    /// Input width.
+    pub fn input(&self) -> usize {
+        self.layers.first().map_or(0, |l| l.input)
+    }
+
+    /// Output width.
+    pub fn output(&self) -> usize {
+        self.layers.last().map_or(0, |l| l.output)
+    }
+
+    /// `x: [n, input]` → `[n, output]`, borrowed from internal scratch space.
+    pub fn forward(&mut self, x: &[f32], n: usize) -> &[f32] {
+        let last = self.layers.len() - 1;
+        let output = self.output();
+        let [a, b] = &mut self.scratch;
+        a.clear();
+        a.extend_from_slice(x);
+        for (k, layer) in self.layers.iter().enumerate() {
+            b.clear();
+            b.resize(n * layer.output, 0.0);
+            for r in 0..n {
+                let row_in = &a[r * layer.input..(r + 1) * layer.input];
+                let row_out = &mut b[r * layer.output..(r + 1) * layer.output];
+                row_out.copy_from_slice(&layer.bias);
+                for (i, &xi) in row_in.iter().enumerate() {
+                    let w = &layer.weight[i * layer.output..(i + 1) * layer.output];
+                    for (o, &wij) in row_out.iter_mut().zip(w) {
+                        *o += xi * wij;
+                    }
+                }
+                if k < last {
+                    row_out.iter_mut().for_each(|v| *v = v.tanh());
+                }
+            }
+            std::mem::swap(a, b);
+        }
+        &a[..n * output]
+    }
+}
+
+/// Per-step outputs of [`HostPolicy::act`], preallocated for `n` rows.
+#[derive(Debug, Clone, Default)]
+pub struct ActBuffers {
+    /// Actions as stored in the rollout buffer, `[n, action_width]` (one-hot rows for
+    /// discrete actions).
+    pub actions: Vec<f32>,
+    /// Actions as passed to the environment, `[n, env_width]` (the index for discrete actions).
+    pub env_actions: Vec<f32>,
+    /// Log-probabilities of the actions, `[n]`.
+    pub logp: Vec<f32>,
+    /// Distribution parameters, `[n, dist_width]` (means then log-stds, or logits).
+    pub dist: Vec<f32>,
+}
+
+/// A host copy of the built-in [`MlpPolicy`] that samples actions.
+#[derive(Debug, Clone)]
+pub struct HostPolicy {
+    net: HostMlp,
+    log_std: Option<Vec<f32>>,
+    action: ActionKind,
+}
+
+impl HostPolicy {
+    /// Copies `policy` (whose actions are `action`) to the host.
+    pub fn new<B: Backend>(policy: &MlpPolicy<B>, action: ActionKind) -> Self {
+        let log_std = policy.log_std.as_ref().map(|p| p.val().into_data().iter::<f32>().collect());
+        Self { net: HostMlp::from_mlp(&policy.net), log_std, action }
+    }
+
+    /// Width of the distribution parameters per row.
+    pub fn dist_width(&self) -> usize {
+        match self.action {
+            ActionKind::Continuous { dim } => 2 * dim,
+            ActionKind::Discrete { n } => n,
+        }
+    }
+
+    /// Width of an action as the environment takes it.
+    pub fn env_width(&self) -> usize {
+        match self.action {
+            ActionKind::Continuous { dim } => dim,
+            ActionKind::Discrete { .. } => 1,
+        }
+    }
+
+    /// Acts in `n` states `obs: [n, observation_dim]`: samples (or, if `deterministic`,
+    /// takes the mode) and fills `out`.
+    pub fn act(&mut self, obs: &[f32], n: usize, deterministic: bool, rng: &mut impl Rng, out: &mut ActBuffers) {
+        let width = self.action.width();
+        let (dist_width, env_width) = (self.dist_width(), self.env_width());
+        out.actions.resize(n * width, 0.0);
+        out.env_actions.resize(n * env_width, 0.0);
+        out.logp.resize(n, 0.0);
+        out.dist.resize(n * dist_width, 0.0);
+        let y = self.net.forward(obs, n);
+        for r in 0..n {
+            let y = &y[r * width..(r + 1) * width];
+            let action = &mut out.actions[r * width..(r + 1) * width];
+            let dist = &mut out.dist[r * dist_width..(r + 1) * dist_width];
+            out.logp[r] = match &self.log_std {
+                Some(log_std) => {
+                    dist[..width].copy_from_slice(y);
+                    dist[width..].copy_from_slice(log_std);
+                    let mut logp = 0.0;
+                    for ((a, &mean), &ls) in action.iter_mut().zip(y).zip(log_std) {
+                        let eps: f32 = if deterministic { 0.0 } else { rng.sample(StandardNormal) };
+                        *a = mean + ls.exp() * eps;
+                        logp += -0.5 * eps * eps - ls - HALF_LN_2PI;
+                    }
+                    out.env_actions[r * env_width..(r + 1) * env_width].copy_from_slice(action);
+                    logp
+                }
+                None => {
+                    dist.copy_from_slice(y);
+                    let max = y.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+                    let log_z = max + y.iter().map(|l| (l - max).exp()).sum::<f32>().ln();
+                    let choice = if deterministic {
+                        y.iter().enumerate().fold(0, |best, (i, &l)| if l > y[best] { i } else { best })
+                    } else {
+                        let u: f32 = rng.random();
+                        let mut acc = 0.0;
+                        y.iter().position(|&l| {
+                            acc += (l - log_z).exp();
+                            u < acc
+                        })
+                        .unwrap_or(width - 1)
+                    };
+                    action.iter_mut().enumerate().for_each(|(i, a)| *a = if i == choice { 1.0 } else { 0.0 });
+                    out.env_actions[r] = choice as f32;
+                    y[choice] - log_z
+                }
+            };
+        }
+    }
+}
+
+/// A host copy of a [`ValueNet`].
+#[derive(Debug, Clone)]
+pub struct HostValue {
+    net: HostMlp,
+}
+
+impl HostValue {
+    /// Copies `value` to the host.
+    pub fn new<B: Backend>(value: &ValueNet<B>) -> Self {
+        Self { net: HostMlp::from_mlp(&value.net) }
+    }
+
+    /// `V(s)` for `obs: [n, observation_dim]` → `[n]`.
+    pub fn values(&mut self, obs: &[f32], n: usize) -> &[f32] {
+        self.net.forward(obs, n)
+    }
+}
