@@ -8,7 +8,9 @@
 //! CARGO_TARGET_DIR=/tmp/target-mujoco cargo test --release -p apo-envs --test mujoco_bench -- --ignored --nocapture
 //! ```
 //!
-//! `APO_BENCH_STEPS` sets the env steps per task (default 20000).
+//! Each measurement runs for about `APO_BENCH_SECONDS` (default 1) and is repeated in
+//! `ROUNDS` interleaved rounds. Rates are given per CPU second (`/proc` accounting, so other
+//! processes on a shared machine barely move them) and, for our env, also per wall second.
 
 use std::process::Command;
 use std::sync::Arc;
@@ -20,17 +22,50 @@ use apo_envs::mujoco::tasks::{
 };
 use apo_envs::mujoco::{steps_per_second, Data, Model, MujocoEnv, Task};
 
-/// `mujoco-testspeed` on `file` for `nstep` simulator steps, one thread: its steps per second.
-fn testspeed(file: &str, nstep: usize) -> Option<f64> {
-    let out = Command::new("mujoco-testspeed")
-        .args([file, &nstep.to_string(), "1", "0.01"])
-        .output()
-        .ok()?;
+/// Linux reports CPU times in `/proc` in ticks of 1/100 s (`USER_HZ`).
+const TICKS_PER_SECOND: f64 = 100.0;
+
+/// Interleaved rounds per task; the best round is kept.
+const ROUNDS: u64 = 3;
+
+/// The fields of a `/proc/.../stat` line after the command name, as numbers
+/// (index 0 is field 3, `state`, which parses as NaN).
+fn stat_fields(line: &str) -> Vec<f64> {
+    let rest = line.rsplit_once(')').map_or("", |(_, r)| r);
+    rest.split_whitespace()
+        .map(|f| f.parse().unwrap_or(f64::NAN))
+        .collect()
+}
+
+/// CPU seconds (user + system) used by this thread so far.
+fn thread_cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/thread-self/stat").expect("/proc/thread-self/stat");
+    let f = stat_fields(&stat);
+    (f[11] + f[12]) / TICKS_PER_SECOND
+}
+
+/// Runs `f`, which does `n` steps, and returns (steps per wall second, steps per CPU second).
+fn rates(n: usize, f: impl FnOnce()) -> (f64, f64) {
+    let (wall, cpu) = (Instant::now(), thread_cpu_seconds());
+    f();
+    let cpu = (thread_cpu_seconds() - cpu).max(1.0 / TICKS_PER_SECOND);
+    (n as f64 / wall.elapsed().as_secs_f64(), n as f64 / cpu)
+}
+
+/// `mujoco-testspeed` on `file` for `nstep` simulator steps on one thread: its own steps per
+/// (wall) second, and steps per CPU second from the CPU time of the process, read as the
+/// children's time of the shell that waited for it.
+fn testspeed(file: &str, nstep: usize) -> Option<(f64, f64)> {
+    let script = format!("mujoco-testspeed '{file}' {nstep} 1 0.01 && cat /proc/$$/stat");
+    let out = Command::new("sh").args(["-c", &script]).output().ok()?;
     let text = String::from_utf8_lossy(&out.stdout);
     let line = text
         .lines()
         .find(|l| l.trim_start().starts_with("Steps per second"))?;
-    line.split(':').nth(1)?.trim().parse().ok()
+    let wall: f64 = line.split(':').nth(1)?.trim().parse().ok()?;
+    let f = stat_fields(text.lines().last()?);
+    let cpu = (f[13] + f[14]) / TICKS_PER_SECOND;
+    Some((wall, nstep as f64 / cpu))
 }
 
 /// MuJoCo's `mju_Halton`: the radical inverse of `index` in `base`.
@@ -47,66 +82,89 @@ fn halton(mut index: usize, base: usize) -> f64 {
 /// Our wrapper driven exactly as `mujoco-testspeed` drives MuJoCo: from `qpos0`, `nstep`
 /// calls of `Data::step` with control `j` at step `i` set to
 /// `center_j + 0.01 · radius_j · (2 · halton(i, j + 2) − 1)`, no resets.
-fn wrapper_loop<T: Task>(nstep: usize) -> f64 {
+fn wrapper_loop<T: Task>(nstep: usize) {
     let model = Arc::new(Model::from_xml_str(T::MJCF).expect("model"));
     let ranges: Vec<[f64; 2]> = model.actuator_ctrlrange().to_vec();
     let mut data = Data::new(model).expect("data");
-    let start = Instant::now();
     for i in 0..nstep {
         for (j, (c, [lo, hi])) in data.ctrl_mut().iter_mut().zip(&ranges).enumerate() {
             *c = (hi + lo) / 2.0 + 0.01 * (hi - lo) / 2.0 * (2.0 * halton(i, j + 2) - 1.0);
         }
         data.step();
     }
-    nstep as f64 / start.elapsed().as_secs_f64()
 }
 
-/// The best of `ROUNDS` interleaved rounds: the machine is shared, so the fastest round is
-/// the one least disturbed by other processes.
-const ROUNDS: u64 = 5;
-
-fn bench<T: Task>(file: &str, steps: usize) {
+fn bench<T: Task>(file: &str, seconds: f64) {
     let path = format!("{}/assets/{file}", env!("CARGO_MANIFEST_DIR"));
+    // Calibrate: env steps that take about `seconds` of CPU.
+    let mut env = MujocoEnv::<T>::make().expect("MuJoCo env");
+    let (_, probe) = rates(2000, || {
+        steps_per_second(&mut env, 2000, 0);
+    });
+    let steps = ((probe * seconds) as usize).max(2000);
     let nstep = steps * T::FRAME_SKIP;
-    let (mut ours, mut raw, mut wrapper) = (0.0f64, 0.0f64, 0.0f64);
+    let fs = T::FRAME_SKIP as f64;
+    let (mut env_wall, mut env_cpu, mut raw_wall, mut raw_cpu, mut wrapper_cpu) =
+        (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for round in 0..ROUNDS {
-        let mut env = MujocoEnv::<T>::make().expect("MuJoCo env");
-        ours = ours.max(steps_per_second(&mut env, steps, round));
-        raw = raw.max(testspeed(&path, nstep).unwrap_or(f64::NAN) / T::FRAME_SKIP as f64);
-        wrapper = wrapper.max(wrapper_loop::<T>(nstep) / T::FRAME_SKIP as f64);
+        let mut wall = 0.0;
+        let (_, cpu) = rates(steps, || wall = steps_per_second(&mut env, steps, round));
+        (env_wall, env_cpu) = (env_wall.max(wall), env_cpu.max(cpu));
+        let (w, c) = testspeed(&path, nstep).unwrap_or((f64::NAN, f64::NAN));
+        (raw_wall, raw_cpu) = (raw_wall.max(w / fs), raw_cpu.max(c / fs));
+        let (_, c) = rates(nstep, || wrapper_loop::<T>(nstep));
+        wrapper_cpu = wrapper_cpu.max(c / fs);
     }
     println!(
-        "{:24} {:>10} {:>12.0} {:>14.0} {:>6.2} {:>14.0} {:>6.2}",
+        "{:24} {:>3} {:>8} | {:>9.0} {:>9.0} {:>6.2} | {:>9.0} {:>6.2} | {:>9.0} {:>9.0} {:>6.2}",
         T::NAME,
         T::FRAME_SKIP,
-        ours,
-        raw,
-        ours / raw,
-        wrapper,
-        wrapper / raw
+        steps,
+        env_cpu,
+        raw_cpu,
+        env_cpu / raw_cpu,
+        wrapper_cpu,
+        wrapper_cpu / raw_cpu,
+        env_wall,
+        raw_wall,
+        env_wall / raw_wall,
     );
 }
 
 #[test]
 #[ignore = "benchmark: run explicitly with --ignored --nocapture in release mode"]
 fn env_steps_per_second_vs_raw_mujoco() {
-    let steps = std::env::var("APO_BENCH_STEPS")
+    let seconds = std::env::var("APO_BENCH_SECONDS")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(20_000);
-    println!("{steps} env steps per task, best of {ROUNDS} interleaved rounds");
+        .unwrap_or(1.0);
+    println!("about {seconds} s per measurement, best of {ROUNDS} interleaved rounds; rates in env steps/s");
     println!(
-        "{:24} {:>10} {:>12} {:>14} {:>6} {:>14} {:>6}",
-        "env", "frame_skip", "env steps/s", "testspeed/fs", "ratio", "wrapper/fs", "ratio"
+        "{:24} {:>3} {:>8} | {:>9} {:>9} {:>6} | {:>9} {:>6} | {:>9} {:>9} {:>6}",
+        "", "", "", "per CPU s", "", "", "", "", "per wall s", "", ""
     );
-    bench::<InvertedPendulum>("inverted_pendulum.xml", steps);
-    bench::<InvertedDoublePendulum>("inverted_double_pendulum.xml", steps);
-    bench::<Reacher>("reacher.xml", steps);
-    bench::<Swimmer>("swimmer.xml", steps);
-    bench::<Hopper>("hopper.xml", steps);
-    bench::<HalfCheetah>("half_cheetah.xml", steps);
-    bench::<Walker2d>("walker2d.xml", steps);
-    bench::<Ant>("ant.xml", steps);
-    bench::<Humanoid>("humanoid.xml", steps);
-    bench::<HumanoidStandup>("humanoid.xml", steps);
+    println!(
+        "{:24} {:>3} {:>8} | {:>9} {:>9} {:>6} | {:>9} {:>6} | {:>9} {:>9} {:>6}",
+        "env",
+        "fs",
+        "steps",
+        "env",
+        "raw/fs",
+        "ratio",
+        "wrap/fs",
+        "ratio",
+        "env",
+        "raw/fs",
+        "ratio"
+    );
+    bench::<InvertedPendulum>("inverted_pendulum.xml", seconds);
+    bench::<InvertedDoublePendulum>("inverted_double_pendulum.xml", seconds);
+    bench::<Reacher>("reacher.xml", seconds);
+    bench::<Swimmer>("swimmer.xml", seconds);
+    bench::<Hopper>("hopper.xml", seconds);
+    bench::<HalfCheetah>("half_cheetah.xml", seconds);
+    bench::<Walker2d>("walker2d.xml", seconds);
+    bench::<Ant>("ant.xml", seconds);
+    bench::<Humanoid>("humanoid.xml", seconds);
+    bench::<HumanoidStandup>("humanoid.xml", seconds);
 }

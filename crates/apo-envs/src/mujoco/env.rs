@@ -223,11 +223,10 @@ impl<T: Task> MujocoEnv<T> {
     }
 
     /// Writes the observation of the current state (for example after [`MujocoEnv::set_state`]).
+    ///
+    /// # Panics
+    /// If `obs.len()` is not the observation dimension.
     pub fn observe(&self, obs: &mut [f32]) {
-        self.task.observe(&self.data, obs);
-    }
-
-    fn write_obs(&self, obs: &mut [f32]) {
         assert_eq!(
             obs.len(),
             T::OBS_DIM,
@@ -250,11 +249,13 @@ impl<T: Task> Env for MujocoEnv<T> {
     fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
         reseed(&mut self.rng, seed);
         self.data.reset();
-        let mut qpos = self.init_qpos.clone();
-        let mut qvel = vec![0.0; self.data.model().nv()];
-        self.task.reset_state(&mut self.rng, &mut qpos, &mut qvel);
-        self.set_state(&qpos, &qvel);
-        self.write_obs(obs);
+        // mj_resetData left qpos = qpos0 and qvel = 0: start from the initial configuration
+        // and perturb in place.
+        self.data.qpos_mut().copy_from_slice(&self.init_qpos);
+        let (qpos, qvel) = self.data.state_mut();
+        self.task.reset_state(&mut self.rng, qpos, qvel);
+        self.data.forward();
+        self.observe(obs);
     }
 
     /// # Panics
@@ -296,7 +297,7 @@ impl<T: Task> Env for MujocoEnv<T> {
             unstable = !reward.is_finite();
             terminated |= unstable;
         }
-        self.write_obs(obs);
+        self.observe(obs);
         if unstable {
             reward = 0.0;
             obs.iter_mut()

@@ -536,6 +536,17 @@ impl Data {
         unsafe { slice_mut(self.raw.as_ref().qvel, self.model.nv()) }
     }
 
+    /// `qpos` and `qvel` at once, writable (`[nq]`, `[nv]`).
+    pub fn state_mut(&mut self) -> (&mut [f64], &mut [f64]) {
+        let (nq, nv) = (self.model.nq(), self.model.nv());
+        // SAFETY: qpos (nq entries) and qvel (nv entries) are disjoint arrays of mjData, and
+        // `self` is borrowed exclusively for the lifetime of both slices.
+        unsafe {
+            let raw = self.raw.as_ref();
+            (slice_mut(raw.qpos, nq), slice_mut(raw.qvel, nv))
+        }
+    }
+
     /// Actuator controls (`[nu]`).
     pub fn ctrl(&self) -> &[f64] {
         // SAFETY: ctrl has nu entries.
