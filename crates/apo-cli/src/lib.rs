@@ -2,8 +2,11 @@
 //! directories, checkpoints, evaluation, plots and benchmarks.
 
 pub mod atomic;
+pub mod bench;
 pub mod checkpoint;
 pub mod config;
+pub mod eval;
+pub mod plot;
 pub mod progress;
 pub mod trainer;
 

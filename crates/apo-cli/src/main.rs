@@ -24,8 +24,81 @@ struct Cli {
 enum Command {
     /// Train a policy.
     Train(TrainArgs),
+    /// Evaluate a run's policy: prints the mean and the minimum return.
+    Eval {
+        /// The run directory.
+        #[arg(long)]
+        run: PathBuf,
+        /// Number of episodes.
+        #[arg(long, default_value_t = 10)]
+        episodes: usize,
+        /// Act with the mean (Gaussian) or most likely (categorical) action.
+        #[arg(long)]
+        deterministic: bool,
+        /// Seed of the evaluation episodes.
+        #[arg(long, default_value_t = 12345)]
+        seed: u64,
+    },
     /// List environments and algorithms.
     List,
+    /// Plot learning curves of runs (mean return, min–max band, worst return).
+    Plot {
+        /// Run directories.
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// Output image, .png or .svg.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Time one APO and one TRPO trust-region update and a Hessian-vector product.
+    Update {
+        /// Backend.
+        #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
+        backend: BackendKind,
+        /// Samples in the batch.
+        #[arg(long, default_value_t = 30_000)]
+        batch: usize,
+        /// Observation dimension.
+        #[arg(long, default_value_t = 60)]
+        obs: usize,
+        /// Action dimension.
+        #[arg(long, default_value_t = 8)]
+        act: usize,
+        /// Timed repeats (after one warm-up); the median is printed.
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
+    /// Environment steps per second of one environment with random actions.
+    Env {
+        /// Environment name.
+        #[arg(long)]
+        env: String,
+        /// Steps to time.
+        #[arg(long, default_value_t = 100_000)]
+        steps: usize,
+    },
+    /// Microseconds per rollout policy call (host MLP, (64, 64)).
+    Policy {
+        /// Observation dimension.
+        #[arg(long, default_value_t = 11)]
+        obs: usize,
+        /// Action dimension.
+        #[arg(long, default_value_t = 3)]
+        act: usize,
+        /// Observations per call (environments stepped together).
+        #[arg(long, default_value_t = 1)]
+        batch: usize,
+        /// Calls to time.
+        #[arg(long, default_value_t = 100_000)]
+        calls: usize,
+    },
 }
 
 #[derive(clap::Args)]
@@ -90,6 +163,9 @@ fn main() -> ExitCode {
             list();
             Ok(())
         }
+        Command::Eval { run, episodes, deterministic, seed } => eval(&run, episodes, deterministic, seed),
+        Command::Plot { runs, out } => apo_cli::plot::plot(&runs, &out).map(|()| println!("wrote {}", out.display())),
+        Command::Bench(command) => bench(command),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -98,6 +174,47 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn eval(run: &Path, episodes: usize, deterministic: bool, seed: u64) -> anyhow::Result<()> {
+    if episodes == 0 {
+        bail!("--episodes must be at least 1");
+    }
+    let result = apo_cli::eval::evaluate(run, episodes, deterministic, seed)?;
+    let stats = apo_core::EpisodeStats::from_episodes(&result.returns, &result.lengths, 0.0)
+        .context("no episode was run")?;
+    println!("episodes={} mean_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}",
+        stats.count, stats.ret_mean, stats.ret_min, stats.ret_max, stats.len_mean);
+    Ok(())
+}
+
+fn bench(command: BenchCommand) -> anyhow::Result<()> {
+    match command {
+        BenchCommand::Update { backend, batch, obs, act, repeats } => {
+            let repeats = repeats.max(1);
+            let t = match backend {
+                BackendKind::Cpu => apo_cli::bench::update::<burn::backend::NdArray>(&Default::default(), batch, obs, act, repeats),
+                BackendKind::Wgpu => apo_cli::bench::update::<burn::backend::Wgpu>(&Default::default(), batch, obs, act, repeats),
+            };
+            println!("backend={backend} batch={batch} obs={obs} act={act} params={} repeats={repeats}", t.params);
+            println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries.0);
+            println!("apo_update_s={:.4} ({})", t.apo_s, t.tries.1);
+            println!("hvp_s={:.5}", t.hvp_s);
+            println!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s);
+        }
+        BenchCommand::Env { env, steps } => {
+            let mut e = apo_envs::make(&env)?;
+            let rate = apo_envs::mujoco::steps_per_second(e.as_mut(), steps, 0);
+            println!("env={env} steps={steps}");
+            println!("steps_per_sec={rate:.1}");
+        }
+        BenchCommand::Policy { obs, act, batch, calls } => {
+            let us = apo_cli::bench::policy_call_us(obs, apo_core::ActionKind::Continuous { dim: act }, batch.max(1), calls.max(1));
+            println!("obs={obs} act={act} batch={batch}");
+            println!("policy_call_us={us:.3}");
+        }
+    }
+    Ok(())
 }
 
 fn list() {

@@ -1,0 +1,114 @@
+//! Benchmarks behind `apo bench`: the policy update (APO vs TRPO, Hessian-vector
+//! products), the rollout policy call, and environment steps.
+
+use std::time::Instant;
+
+use apo_core::flat::{flatten, to_host};
+use apo_core::hvp::hessian_vector_product;
+use apo_core::inference::{ActBuffers, HostPolicy};
+use apo_core::trust_region::trust_region_step;
+use apo_core::{
+    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, MlpPolicyConfig, Policy, PolicyFamily, RolloutBuffer,
+    TensorBatch,
+};
+use burn::backend::Autodiff;
+use burn::tensor::backend::Backend;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
+
+/// Timings of the update benchmark, seconds (medians over the repeats).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UpdateTimings {
+    /// Policy parameters.
+    pub params: usize,
+    /// One TRPO trust-region step.
+    pub trpo_s: f64,
+    /// One APO trust-region step.
+    pub apo_s: f64,
+    /// One Hessian-vector product of the mean KL.
+    pub hvp_s: f64,
+    /// Line-search tries of the last TRPO and APO steps.
+    pub tries: (String, String),
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// A synthetic epoch: `n` Gaussian observations of `obs_dim`, actions sampled from a fresh
+/// (64, 64) policy, random rewards and values, paths of 1000 steps.
+pub fn synthetic_batch(policy: &mut HostPolicy, n: usize, obs_dim: usize, act_dim: usize, rng: &mut StdRng) -> Batch {
+    let layout = BufferLayout { observation_dim: obs_dim, action_width: act_dim, dist_width: 2 * act_dim };
+    let mut buffer = RolloutBuffer::new(layout, 0.99, 0.97, n);
+    let mut act = ActBuffers::default();
+    let mut obs = vec![0.0f32; obs_dim];
+    for t in 0..n {
+        obs.iter_mut().for_each(|o| *o = rng.sample(StandardNormal));
+        policy.act(&obs, 1, false, rng, &mut act);
+        let (value, reward) = (rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        buffer.store(&obs, &act.actions, act.logp[0], &act.dist, value, reward);
+        if (t + 1) % 1000 == 0 || t + 1 == n {
+            buffer.finish_path(0.0);
+        }
+    }
+    buffer.take()
+}
+
+/// Times APO and TRPO trust-region steps and KL Hessian-vector products on backend `B`.
+pub fn update<B: Backend>(device: &B::Device, n: usize, obs_dim: usize, act_dim: usize, repeats: usize) -> UpdateTimings {
+    let action = ActionKind::Continuous { dim: act_dim };
+    let family = MlpPolicyConfig::new(obs_dim, action);
+    B::seed(device, 0);
+    let policy_b = family.init::<B>(device);
+    let theta = to_host(flatten(&policy_b));
+    let mut rng = StdRng::seed_from_u64(0);
+    let mut host = HostPolicy::new(&policy_b, action);
+    let batch = synthetic_batch(&mut host, n, obs_dim, act_dim, &mut rng);
+    let tb = TensorBatch::<B>::new(&batch, action, device);
+    let (trpo, apo) = (AlgoConfig::paper_defaults(Algorithm::Trpo), AlgoConfig::paper_defaults(Algorithm::Apo));
+    let (mut trpo_s, mut apo_s, mut tries) = (vec![], vec![], (String::new(), String::new()));
+    // one warm-up of each, then alternate so that both see the same machine state
+    for round in 0..=repeats {
+        for (config, times, tried) in [(&trpo, &mut trpo_s, &mut tries.0), (&apo, &mut apo_s, &mut tries.1)] {
+            let start = Instant::now();
+            let report = trust_region_step(&family, &config.objective(), &theta, &tb, &config.trust_region);
+            if round > 0 {
+                times.push(start.elapsed().as_secs_f64());
+            }
+            *tried = format!("{:?}", report.outcome);
+        }
+    }
+    let tb2 = tb.lift::<Autodiff<B>>().lift::<Autodiff<Autodiff<B>>>();
+    let template = family.init::<Autodiff<Autodiff<B>>>(device);
+    let v: Vec<f64> = (0..theta.len()).map(|_| rng.sample(StandardNormal)).collect();
+    let hvp_s = (0..=repeats)
+        .map(|_| {
+            let start = Instant::now();
+            let hv = hessian_vector_product::<B, _>(&template, &theta, &v, device, |p| {
+                p.distribution(tb2.obs.clone()).kl_from(&tb2.dist_old).mean()
+            });
+            std::hint::black_box(hv);
+            start.elapsed().as_secs_f64()
+        })
+        .skip(1)
+        .collect();
+    UpdateTimings { params: theta.len(), trpo_s: median(trpo_s), apo_s: median(apo_s), hvp_s: median(hvp_s), tries }
+}
+
+/// Microseconds per host policy call for a batch of `batch` observations.
+pub fn policy_call_us(obs_dim: usize, action: ActionKind, batch: usize, calls: usize) -> f64 {
+    let family = MlpPolicyConfig::new(obs_dim, action);
+    let device = Default::default();
+    let mut policy = HostPolicy::new(&family.init::<burn::backend::NdArray>(&device), action);
+    let mut rng = StdRng::seed_from_u64(0);
+    let obs: Vec<f32> = (0..obs_dim * batch).map(|_| rng.sample(StandardNormal)).collect();
+    let mut act = ActBuffers::default();
+    policy.act(&obs, batch, false, &mut rng, &mut act);
+    let start = Instant::now();
+    for _ in 0..calls {
+        policy.act(std::hint::black_box(&obs), batch, false, &mut rng, &mut act);
+    }
+    start.elapsed().as_secs_f64() * 1e6 / calls as f64
+}

@@ -1,0 +1,65 @@
+//! Evaluation of a trained run: episodes with the checkpoint's policy.
+
+use std::path::Path;
+
+use anyhow::Context;
+use apo_core::inference::{ActBuffers, HostPolicy};
+use apo_core::Learner;
+use apo_envs::{Action, Space};
+use burn::backend::NdArray;
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+
+use crate::checkpoint;
+use crate::config::RunConfig;
+use crate::trainer::{action_kind, networks};
+
+/// Returns of evaluation episodes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalResult {
+    /// Undiscounted return of each episode.
+    pub returns: Vec<f64>,
+    /// Length of each episode.
+    pub lengths: Vec<usize>,
+}
+
+/// Runs `episodes` episodes of the policy saved in `run_dir` (on the CPU), seeded by `seed`;
+/// with `deterministic` the policy takes the mean (Gaussian) or most likely (categorical) action.
+pub fn evaluate(run_dir: &Path, episodes: usize, deterministic: bool, seed: u64) -> anyhow::Result<EvalResult> {
+    let config = RunConfig::load(&run_dir.join("config.toml"))
+        .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
+    let mut env = apo_envs::make(&config.env)?;
+    let obs_dim = env.observation_space().flat_dim();
+    let action = action_kind(env.action_space());
+    let (policy_cfg, value_cfg) = networks(&config, obs_dim, action);
+    let device = Default::default();
+    let mut learner = Learner::<NdArray, _>::new(policy_cfg, action, &value_cfg, config.algo.clone(), &device, 0)?;
+    let state = checkpoint::load(run_dir, &mut learner, &device)?;
+    let mut policy = HostPolicy::new(&learner.policy_on::<NdArray>(&device), action);
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut obs = vec![0.0f32; obs_dim];
+    let mut act = ActBuffers::default();
+    let mut result = EvalResult { returns: vec![], lengths: vec![] };
+    for episode in 0..episodes {
+        env.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
+        let (mut ret, mut len) = (0.0, 0);
+        loop {
+            if let Some(rms) = &state.normalizer {
+                rms.normalize(&mut obs);
+            }
+            policy.act(&obs, 1, deterministic, &mut rng, &mut act);
+            let t = match env.action_space() {
+                Space::Discrete { .. } => env.step(Action::Discrete(act.env_actions[0] as usize), &mut obs),
+                Space::Box { .. } => env.step(Action::Continuous(&act.env_actions), &mut obs),
+            };
+            ret += t.reward;
+            len += 1;
+            if t.done() {
+                break;
+            }
+        }
+        result.returns.push(ret);
+        result.lengths.push(len);
+    }
+    Ok(result)
+}
