@@ -8,8 +8,13 @@
 //! CARGO_TARGET_DIR=/tmp/target-mujoco cargo test --release -p apo-envs --test mujoco_bench -- --ignored --nocapture
 //! ```
 //!
+//! Columns: `raw/fs` testspeed's steps/s over the frame skip; `env` our environment under
+//! uniform random actions (`mujoco::steps_per_second`); `env(ts)` our environment under
+//! testspeed's controls; `wrap/fs` our `Data::step` under testspeed's controls, over the frame
+//! skip; each with its ratio to `raw/fs`.
+//!
 //! Each measurement runs for about `APO_BENCH_SECONDS` (default 1) and is repeated in
-//! `ROUNDS` interleaved rounds. Rates are given per CPU second (`/proc` accounting, so other
+//! `ROUNDS` interleaved rounds; `APO_BENCH_ONLY=Hopper,Ant` restricts the tasks. Rates are given per CPU second (`/proc` accounting, so other
 //! processes on a shared machine barely move them) and, for our env, also per wall second.
 
 use std::process::Command;
@@ -21,6 +26,7 @@ use apo_envs::mujoco::tasks::{
     Reacher, Swimmer, Walker2d,
 };
 use apo_envs::mujoco::{steps_per_second, Data, Model, MujocoEnv, Task};
+use apo_envs::{Action, Env};
 
 /// Linux reports CPU times in `/proc` in ticks of 1/100 s (`USER_HZ`).
 const TICKS_PER_SECOND: f64 = 100.0;
@@ -94,7 +100,27 @@ fn wrapper_loop<T: Task>(nstep: usize) {
     }
 }
 
+/// Our environment driven with testspeed's controls (as in [`wrapper_loop`], one control
+/// per env step), resetting when an episode ends: the env layer on the states testspeed visits.
+fn env_testspeed_controls<T: Task>(env: &mut MujocoEnv<T>, steps: usize) {
+    let ranges: Vec<[f64; 2]> = env.data().model().actuator_ctrlrange().to_vec();
+    let mut obs = vec![0.0; T::OBS_DIM];
+    let mut action = vec![0.0f32; ranges.len()];
+    env.reset(Some(0), &mut obs);
+    for i in 0..steps {
+        for (j, (a, [lo, hi])) in action.iter_mut().zip(&ranges).enumerate() {
+            *a = ((hi + lo) / 2.0 + 0.01 * (hi - lo) / 2.0 * (2.0 * halton(i, j + 2) - 1.0)) as f32;
+        }
+        if env.step(Action::Continuous(&action), &mut obs).done() {
+            env.reset(None, &mut obs);
+        }
+    }
+}
+
 fn bench<T: Task>(file: &str, seconds: f64) {
+    if std::env::var("APO_BENCH_ONLY").is_ok_and(|only| !only.split(',').any(|n| n == T::NAME)) {
+        return;
+    }
     let path = format!("{}/assets/{file}", env!("CARGO_MANIFEST_DIR"));
     // Calibrate: env steps that take about `seconds` of CPU.
     let mut env = MujocoEnv::<T>::make().expect("MuJoCo env");
@@ -104,8 +130,8 @@ fn bench<T: Task>(file: &str, seconds: f64) {
     let steps = ((probe * seconds) as usize).max(2000);
     let nstep = steps * T::FRAME_SKIP;
     let fs = T::FRAME_SKIP as f64;
-    let (mut env_wall, mut env_cpu, mut raw_wall, mut raw_cpu, mut wrapper_cpu) =
-        (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let (mut env_wall, mut env_cpu, mut raw_wall, mut raw_cpu, mut wrapper_cpu, mut env_ts_cpu) =
+        (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for round in 0..ROUNDS {
         let mut wall = 0.0;
         let (_, cpu) = rates(steps, || wall = steps_per_second(&mut env, steps, round));
@@ -114,19 +140,24 @@ fn bench<T: Task>(file: &str, seconds: f64) {
         (raw_wall, raw_cpu) = (raw_wall.max(w / fs), raw_cpu.max(c / fs));
         let (_, c) = rates(nstep, || wrapper_loop::<T>(nstep));
         wrapper_cpu = wrapper_cpu.max(c / fs);
+        let (_, c) = rates(steps, || env_testspeed_controls(&mut env, steps));
+        env_ts_cpu = env_ts_cpu.max(c);
     }
+    let r = |x: f64| x / raw_cpu;
     println!(
-        "{:24} {:>3} {:>8} | {:>9.0} {:>9.0} {:>6.2} | {:>9.0} {:>6.2} | {:>9.0} {:>9.0} {:>6.2}",
+        "{:24} {:>3} {:>7} | {:>8.0} {:>8.0} {:>5.2} | {:>8.0} {:>5.2} | {:>8.0} {:>5.2} | {:>8.0} {:>8.0} {:>5.2}",
         T::NAME,
         T::FRAME_SKIP,
         steps,
-        env_cpu,
         raw_cpu,
-        env_cpu / raw_cpu,
+        env_cpu,
+        r(env_cpu),
+        env_ts_cpu,
+        r(env_ts_cpu),
         wrapper_cpu,
-        wrapper_cpu / raw_cpu,
-        env_wall,
+        r(wrapper_cpu),
         raw_wall,
+        env_wall,
         env_wall / raw_wall,
     );
 }
@@ -140,21 +171,23 @@ fn env_steps_per_second_vs_raw_mujoco() {
         .unwrap_or(1.0);
     println!("about {seconds} s per measurement, best of {ROUNDS} interleaved rounds; rates in env steps/s");
     println!(
-        "{:24} {:>3} {:>8} | {:>9} {:>9} {:>6} | {:>9} {:>6} | {:>9} {:>9} {:>6}",
-        "", "", "", "per CPU s", "", "", "", "", "per wall s", "", ""
+        "{:24} {:>3} {:>7} | {:^66} | {:^23}",
+        "", "", "", "per CPU second", "per wall second"
     );
     println!(
-        "{:24} {:>3} {:>8} | {:>9} {:>9} {:>6} | {:>9} {:>6} | {:>9} {:>9} {:>6}",
+        "{:24} {:>3} {:>7} | {:>8} {:>8} {:>5} | {:>8} {:>5} | {:>8} {:>5} | {:>8} {:>8} {:>5}",
         "env",
         "fs",
         "steps",
-        "env",
         "raw/fs",
+        "env",
+        "ratio",
+        "env(ts)",
         "ratio",
         "wrap/fs",
         "ratio",
-        "env",
         "raw/fs",
+        "env",
         "ratio"
     );
     bench::<InvertedPendulum>("inverted_pendulum.xml", seconds);
