@@ -15,7 +15,7 @@ use std::ffi::{c_char, CStr, CString};
 use std::mem::MaybeUninit;
 use std::path::Path;
 use std::ptr::NonNull;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use super::error::MujocoError;
 use super::ffi::{mjData, mjModel, mjVFS, mjtObj, mjtWarning, MujocoApi};
@@ -370,6 +370,9 @@ impl Model {
     }
 }
 
+/// Serializes calls of `mj_loadXML`.
+static LOAD_LOCK: Mutex<()> = Mutex::new(());
+
 /// Runs `mj_loadXML` and wraps the result.
 ///
 /// # Safety
@@ -381,6 +384,10 @@ unsafe fn load(
     source_name: String,
 ) -> Result<Model, MujocoError> {
     let mut error = [0 as c_char; ERROR_LEN];
+    // MuJoCo 2.2 does not document its XML loader as thread-safe: one load at a time.
+    let _guard = LOAD_LOCK
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     // SAFETY: a NUL-terminated file name, a valid or null VFS, and an error buffer of the size passed.
     let raw = unsafe { api.mj_loadXML(file.as_ptr(), vfs, error.as_mut_ptr(), ERROR_LEN as i32) };
     match NonNull::new(raw) {
