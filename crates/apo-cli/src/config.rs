@@ -124,6 +124,7 @@ impl RunConfig {
     /// each `key=value` of `sets` (values in TOML syntax; a bare word is taken as a string).
     pub fn build(algo: Algorithm, env: &str, file: Option<&Path>, sets: &[String]) -> Result<Self, ConfigFileError> {
         let mut doc = to_table(&Self::defaults(algo, env));
+        let chosen = toml::Value::String(algo.name().to_string());
         if let Some(path) = file {
             let text = std::fs::read_to_string(path)
                 .map_err(|source| ConfigFileError::Read { path: path.display().to_string(), source })?;
@@ -136,6 +137,8 @@ impl RunConfig {
             let (key, value) = set.split_once('=').ok_or_else(|| ConfigFileError::BadSet(set.clone()))?;
             set_path(&mut doc, key.trim(), parse_value(value.trim()))?;
         }
+        // the algorithm chosen on the command line wins over a file's
+        set_path(&mut doc, "algo.algo", chosen)?;
         let config = Self::from_table(doc)?;
         config.validate()?;
         Ok(config)
@@ -299,6 +302,16 @@ mod tests {
         let c = RunConfig::build(Algorithm::Ppo, "x", None, &["algo.policy_update.minibatch_size=64".into()])
             .expect("optional key");
         assert_eq!(c.algo.policy_update.minibatch_size, Some(64));
+    }
+
+    #[test]
+    fn shipped_configs_are_the_paper_defaults() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
+        for algo in Algorithm::ALL {
+            let file = dir.join(format!("{algo}.toml"));
+            let c = RunConfig::build(algo, "x", Some(&file), &[]).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+            assert_eq!(c, RunConfig::defaults(algo, "x"), "{}", file.display());
+        }
     }
 
     #[test]

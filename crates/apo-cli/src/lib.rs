@@ -8,6 +8,7 @@ pub mod config;
 pub mod eval;
 pub mod plot;
 pub mod progress;
+pub mod summary;
 pub mod trainer;
 
 pub use config::{BackendKind, RunConfig};

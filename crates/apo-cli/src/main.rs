@@ -50,6 +50,15 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// The paper's metrics of runs: average mean and worst return over all and the last N epochs.
+    Summary {
+        /// Run directories.
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// N of "the last N epochs" (paper: 20 continuous, 100 Atari).
+        #[arg(long, default_value_t = 20)]
+        last: usize,
+    },
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -166,6 +175,7 @@ fn main() -> ExitCode {
         Command::Eval { run, episodes, deterministic, seed } => eval(&run, episodes, deterministic, seed),
         Command::Plot { runs, out } => apo_cli::plot::plot(&runs, &out).map(|()| println!("wrote {}", out.display())),
         Command::Bench(command) => bench(command),
+        Command::Summary { runs, last } => summary(&runs, last),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -185,6 +195,19 @@ fn eval(run: &Path, episodes: usize, deterministic: bool, seed: u64) -> anyhow::
         .context("no episode was run")?;
     println!("episodes={} mean_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}",
         stats.count, stats.ret_mean, stats.ret_min, stats.ret_max, stats.len_mean);
+    Ok(())
+}
+
+fn summary(runs: &[PathBuf], last: usize) -> anyhow::Result<()> {
+    let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    println!("run,epochs,env_steps,mean_all,mean_last{last},worst_all,worst_last{last},steps_per_s");
+    for run in runs {
+        let s = apo_cli::summary::summarize(run, last)?;
+        println!(
+            "{},{},{},{},{},{},{},{:.0}",
+            run.display(), s.epochs, s.env_steps, fmt(s.mean_all), fmt(s.mean_last), fmt(s.worst_all), fmt(s.worst_last), s.steps_per_s
+        );
+    }
     Ok(())
 }
 

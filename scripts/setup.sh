@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Sets up apo on a fresh Debian (bookworm) machine and runs a small default job.
+#
+#   bash scripts/setup.sh              # install, build, train APO on Pendulum-v1, evaluate, plot
+#   bash scripts/setup.sh --deps-only  # install the Debian packages only (what CI does)
+#
+# Installs (as root, or through sudo) the Debian packages the project needs:
+#   build-essential pkg-config   C toolchain for crates that build C
+#   libmujoco-dev                MuJoCo 2.2.2, loaded at run time by the MuJoCo environments
+#   libmujoco-samples            mujoco-testspeed, the raw-simulator benchmark
+#   mesa-vulkan-drivers          a Vulkan driver (Mesa's software one on CPU-only machines) for --backend wgpu
+#   fonts-dejavu-core            the font `apo plot` writes its labels with
+# Rust itself comes from rustup (https://rustup.rs); this script checks it is there.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(build-essential pkg-config libmujoco-dev libmujoco-samples mesa-vulkan-drivers fonts-dejavu-core)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  echo "== installing: ${missing[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+if [ "${1:-}" = "--deps-only" ]; then
+  exit 0
+fi
+
+if ! command -v cargo >/dev/null; then
+  echo "error: cargo not found; install Rust with rustup (https://rustup.rs), then run this again" >&2
+  exit 1
+fi
+
+echo "== building apo (release)"
+cargo build --release -p apo-cli
+echo "apo is at target/release/apo"
+
+echo "== small default job: APO on Pendulum-v1, 20 epochs x 4000 steps"
+./target/release/apo train --algo apo --env Pendulum-v1 --config configs/pendulum.toml \
+  --epochs 20 --steps-per-epoch 4000 --out runs/quickstart-apo --force
+./target/release/apo eval --run runs/quickstart-apo --episodes 10
+./target/release/apo plot runs/quickstart-apo --out runs/quickstart-apo/curves.png
