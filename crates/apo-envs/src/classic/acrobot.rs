@@ -4,9 +4,9 @@ use std::f64::consts::PI;
 
 use rand::Rng;
 
-use super::discrete_action;
+use super::{discrete_action, symmetric_box, write_obs, Core};
 use crate::env::{Action, Env, StepInfo, Transition};
-use crate::rng::{entropy_rng, reseed, EnvRng};
+use crate::rng::EnvRng;
 use crate::space::Space;
 
 const DT: f64 = 0.2;
@@ -39,10 +39,7 @@ const TORQUES: [f64; 3] = [-1.0, 0.0, 1.0];
 /// - Reset: each state component uniform in `[-0.1, 0.1)`, rounded to `f32` as Gymnasium does.
 #[derive(Debug, Clone)]
 pub struct Acrobot {
-    state: [f64; 4],
-    rng: EnvRng,
-    observation_space: Space,
-    action_space: Space,
+    core: Core<4>,
 }
 
 impl Acrobot {
@@ -50,41 +47,24 @@ impl Acrobot {
     /// to start an episode.
     pub fn new() -> Self {
         let high = [1.0, 1.0, 1.0, 1.0, MAX_VEL_1 as f32, MAX_VEL_2 as f32];
-        let mut env = Self {
-            state: [0.0; 4],
-            rng: entropy_rng(),
-            observation_space: Space::Box {
-                low: high.iter().map(|h| -h).collect(),
-                high: high.to_vec(),
-            },
-            action_space: Space::Discrete { n: 3 },
-        };
-        env.sample_state();
-        env
+        Self {
+            core: Core::new(symmetric_box(&high), Space::Discrete { n: 3 }, sample_state),
+        }
     }
 
     /// The physical state `[θ1, θ2, θ̇1, θ̇2]`.
     pub fn state(&self) -> [f64; 4] {
-        self.state
+        self.core.state
     }
 
     /// Sets the physical state `[θ1, θ2, θ̇1, θ̇2]` (for tests and demonstrations).
     pub fn set_state(&mut self, state: [f64; 4]) {
-        self.state = state;
+        self.core.state = state;
     }
 
-    fn sample_state(&mut self) {
-        for s in &mut self.state {
-            *s = f64::from(self.rng.random_range(-0.1..0.1f64) as f32);
-        }
-    }
-
-    fn write_obs(&self, obs: &mut [f32]) {
-        let [t1, t2, dt1, dt2] = self.state;
-        let values = [t1.cos(), t1.sin(), t2.cos(), t2.sin(), dt1, dt2];
-        for (o, v) in obs.iter_mut().zip(values) {
-            *o = v as f32;
-        }
+    fn observe(&self, obs: &mut [f32]) {
+        let [t1, t2, dt1, dt2] = self.core.state;
+        write_obs(obs, [t1.cos(), t1.sin(), t2.cos(), t2.sin(), dt1, dt2]);
     }
 }
 
@@ -92,6 +72,11 @@ impl Default for Acrobot {
     fn default() -> Self {
         Self::new()
     }
+}
+
+/// The reset distribution: each component uniform in `[-0.1, 0.1)`, rounded to `f32`.
+fn sample_state(rng: &mut EnvRng) -> [f64; 4] {
+    std::array::from_fn(|_| f64::from(rng.random_range(-0.1..0.1f64) as f32))
 }
 
 /// Time derivative of `[θ1, θ2, θ̇1, θ̇2]` under elbow torque `torque` (book dynamics).
@@ -147,31 +132,30 @@ fn wrap_angle(mut x: f64) -> f64 {
 
 impl Env for Acrobot {
     fn observation_space(&self) -> &Space {
-        &self.observation_space
+        &self.core.observation_space
     }
 
     fn action_space(&self) -> &Space {
-        &self.action_space
+        &self.core.action_space
     }
 
     fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
-        reseed(&mut self.rng, seed);
-        self.sample_state();
-        self.write_obs(obs);
+        self.core.reset(seed, sample_state);
+        self.observe(obs);
     }
 
     fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
         let torque = TORQUES[discrete_action(action, 3, "Acrobot")];
-        let [t1, t2, dt1, dt2] = rk4(self.state, torque);
-        self.state = [
+        let [t1, t2, dt1, dt2] = rk4(self.core.state, torque);
+        self.core.state = [
             wrap_angle(t1),
             wrap_angle(t2),
             dt1.clamp(-MAX_VEL_1, MAX_VEL_1),
             dt2.clamp(-MAX_VEL_2, MAX_VEL_2),
         ];
-        let [t1, t2, ..] = self.state;
+        let [t1, t2, ..] = self.core.state;
         let terminated = -t1.cos() - (t1 + t2).cos() > 1.0;
-        self.write_obs(obs);
+        self.observe(obs);
         Transition {
             reward: if terminated { 0.0 } else { -1.0 },
             terminated,

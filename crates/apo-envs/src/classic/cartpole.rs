@@ -2,9 +2,9 @@
 
 use rand::Rng;
 
-use super::discrete_action;
+use super::{discrete_action, symmetric_box, write_obs, Core};
 use crate::env::{Action, Env, StepInfo, Transition};
-use crate::rng::{entropy_rng, reseed, EnvRng};
+use crate::rng::EnvRng;
 use crate::space::Space;
 
 const GRAVITY: f64 = 9.8;
@@ -33,11 +33,8 @@ const THETA_THRESHOLD: f64 = 12.0 * 2.0 * std::f64::consts::PI / 360.0;
 /// - Reset: each state component uniform in `[-0.05, 0.05)`.
 #[derive(Debug, Clone)]
 pub struct CartPole {
-    state: [f64; 4],
+    core: Core<4>,
     terminated: bool,
-    rng: EnvRng,
-    observation_space: Space,
-    action_space: Space,
 }
 
 impl CartPole {
@@ -50,44 +47,28 @@ impl CartPole {
             (2.0 * THETA_THRESHOLD) as f32,
             f32::MAX,
         ];
-        let mut env = Self {
-            state: [0.0; 4],
+        Self {
+            core: Core::new(symmetric_box(&high), Space::Discrete { n: 2 }, sample_state),
             terminated: false,
-            rng: entropy_rng(),
-            observation_space: Space::Box {
-                low: high.iter().map(|h| -h).collect(),
-                high: high.to_vec(),
-            },
-            action_space: Space::Discrete { n: 2 },
-        };
-        env.sample_state();
-        env
+        }
     }
 
     /// The physical state `[x, ẋ, θ, θ̇]`.
     pub fn state(&self) -> [f64; 4] {
-        self.state
+        self.core.state
     }
 
     /// Sets the physical state `[x, ẋ, θ, θ̇]` (for tests and demonstrations) and clears the
     /// terminated flag.
     pub fn set_state(&mut self, state: [f64; 4]) {
-        self.state = state;
+        self.core.state = state;
         self.terminated = false;
     }
+}
 
-    fn sample_state(&mut self) {
-        for s in &mut self.state {
-            *s = self.rng.random_range(-0.05..0.05);
-        }
-        self.terminated = false;
-    }
-
-    fn write_obs(&self, obs: &mut [f32]) {
-        for (o, s) in obs.iter_mut().zip(&self.state) {
-            *o = *s as f32;
-        }
-    }
+/// The reset distribution: each component uniform in `[-0.05, 0.05)`.
+fn sample_state(rng: &mut EnvRng) -> [f64; 4] {
+    std::array::from_fn(|_| rng.random_range(-0.05..0.05))
 }
 
 impl Default for CartPole {
@@ -98,17 +79,17 @@ impl Default for CartPole {
 
 impl Env for CartPole {
     fn observation_space(&self) -> &Space {
-        &self.observation_space
+        &self.core.observation_space
     }
 
     fn action_space(&self) -> &Space {
-        &self.action_space
+        &self.core.action_space
     }
 
     fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
-        reseed(&mut self.rng, seed);
-        self.sample_state();
-        self.write_obs(obs);
+        self.core.reset(seed, sample_state);
+        self.terminated = false;
+        write_obs(obs, self.core.state);
     }
 
     fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
@@ -117,25 +98,25 @@ impl Env for CartPole {
         } else {
             -FORCE_MAG
         };
-        let [x, x_dot, theta, theta_dot] = self.state;
+        let [x, x_dot, theta, theta_dot] = self.core.state;
         let (sin, cos) = theta.sin_cos();
         let temp = (force + POLE_MASS_LENGTH * theta_dot * theta_dot * sin) / TOTAL_MASS;
         let theta_acc = (GRAVITY * sin - cos * temp)
             / (HALF_LENGTH * (4.0 / 3.0 - MASS_POLE * cos * cos / TOTAL_MASS));
         let x_acc = temp - POLE_MASS_LENGTH * theta_acc * cos / TOTAL_MASS;
-        self.state = [
+        self.core.state = [
             x + TAU * x_dot,
             x_dot + TAU * x_acc,
             theta + TAU * theta_dot,
             theta_dot + TAU * theta_acc,
         ];
-        let [x, _, theta, _] = self.state;
+        let [x, _, theta, _] = self.core.state;
         let terminated = !(-X_THRESHOLD..=X_THRESHOLD).contains(&x)
             || !(-THETA_THRESHOLD..=THETA_THRESHOLD).contains(&theta);
         // Gymnasium pays 1 up to and including the terminating step, 0 for steps after it.
         let reward = if self.terminated { 0.0 } else { 1.0 };
         self.terminated |= terminated;
-        self.write_obs(obs);
+        write_obs(obs, self.core.state);
         Transition {
             reward,
             terminated,

@@ -24,6 +24,58 @@ pub use mountain_car::MountainCarContinuous;
 pub use pendulum::Pendulum;
 
 use crate::env::Action;
+use crate::rng::{entropy_rng, reseed, EnvRng};
+use crate::space::Space;
+
+/// What every classic-control environment owns besides its own flags: the physical state,
+/// the RNG and the two spaces. The reset distribution is the environment's `sample` function.
+#[derive(Debug, Clone)]
+struct Core<const N: usize> {
+    /// The physical state.
+    state: [f64; N],
+    rng: EnvRng,
+    observation_space: Space,
+    action_space: Space,
+}
+
+impl<const N: usize> Core<N> {
+    /// A core with an entropy-seeded RNG and an initial state drawn by `sample`.
+    fn new(
+        observation_space: Space,
+        action_space: Space,
+        sample: fn(&mut EnvRng) -> [f64; N],
+    ) -> Self {
+        let mut rng = entropy_rng();
+        Core {
+            state: sample(&mut rng),
+            rng,
+            observation_space,
+            action_space,
+        }
+    }
+
+    /// The state part of [`crate::Env::reset`]: applies `seed` (see [`reseed`]) and draws a
+    /// new state with `sample`.
+    fn reset(&mut self, seed: Option<u64>, sample: fn(&mut EnvRng) -> [f64; N]) {
+        reseed(&mut self.rng, seed);
+        self.state = sample(&mut self.rng);
+    }
+}
+
+/// The box `[-high, high]`.
+fn symmetric_box(high: &[f32]) -> Space {
+    Space::Box {
+        low: high.iter().map(|h| -h).collect(),
+        high: high.to_vec(),
+    }
+}
+
+/// Writes `values` into the observation buffer `obs` as `f32`.
+fn write_obs(obs: &mut [f32], values: impl IntoIterator<Item = f64>) {
+    for (o, v) in obs.iter_mut().zip(values) {
+        *o = v as f32;
+    }
+}
 
 /// The index of a discrete `action` for an environment with `n` actions.
 ///

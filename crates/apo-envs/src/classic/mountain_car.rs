@@ -2,9 +2,9 @@
 
 use rand::Rng;
 
-use super::continuous_action;
+use super::{continuous_action, write_obs, Core};
 use crate::env::{Action, Env, StepInfo, Transition};
-use crate::rng::{entropy_rng, reseed, EnvRng};
+use crate::rng::EnvRng;
 use crate::space::Space;
 
 const MIN_ACTION: f64 = -1.0;
@@ -31,48 +31,39 @@ const POWER: f64 = 0.0015;
 /// - Reset: `x ~ U(−0.6, −0.4)`, `v = 0`.
 #[derive(Debug, Clone)]
 pub struct MountainCarContinuous {
-    state: [f64; 2],
-    rng: EnvRng,
-    observation_space: Space,
-    action_space: Space,
+    core: Core<2>,
 }
 
 impl MountainCarContinuous {
     /// A mountain car with an entropy-seeded RNG and a random initial state; call
     /// [`Env::reset`] to start an episode.
     pub fn new() -> Self {
-        let mut env = Self {
-            state: [0.0; 2],
-            rng: entropy_rng(),
-            observation_space: Space::Box {
-                low: vec![MIN_POSITION as f32, -MAX_SPEED as f32],
-                high: vec![MAX_POSITION as f32, MAX_SPEED as f32],
-            },
-            action_space: Space::uniform_box(1, MIN_ACTION as f32, MAX_ACTION as f32),
-        };
-        env.sample_state();
-        env
+        Self {
+            core: Core::new(
+                Space::Box {
+                    low: vec![MIN_POSITION as f32, -MAX_SPEED as f32],
+                    high: vec![MAX_POSITION as f32, MAX_SPEED as f32],
+                },
+                Space::uniform_box(1, MIN_ACTION as f32, MAX_ACTION as f32),
+                sample_state,
+            ),
+        }
     }
 
     /// The physical state `[position, velocity]`.
     pub fn state(&self) -> [f64; 2] {
-        self.state
+        self.core.state
     }
 
     /// Sets the physical state `[position, velocity]` (for tests and demonstrations).
     pub fn set_state(&mut self, state: [f64; 2]) {
-        self.state = state;
+        self.core.state = state;
     }
+}
 
-    fn sample_state(&mut self) {
-        self.state = [self.rng.random_range(-0.6..-0.4), 0.0];
-    }
-
-    fn write_obs(&self, obs: &mut [f32]) {
-        for (o, s) in obs.iter_mut().zip(&self.state) {
-            *o = *s as f32;
-        }
-    }
+/// The reset distribution: `x ~ U(−0.6, −0.4)`, `v = 0`.
+fn sample_state(rng: &mut EnvRng) -> [f64; 2] {
+    [rng.random_range(-0.6..-0.4), 0.0]
 }
 
 impl Default for MountainCarContinuous {
@@ -83,23 +74,22 @@ impl Default for MountainCarContinuous {
 
 impl Env for MountainCarContinuous {
     fn observation_space(&self) -> &Space {
-        &self.observation_space
+        &self.core.observation_space
     }
 
     fn action_space(&self) -> &Space {
-        &self.action_space
+        &self.core.action_space
     }
 
     fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
-        reseed(&mut self.rng, seed);
-        self.sample_state();
-        self.write_obs(obs);
+        self.core.reset(seed, sample_state);
+        write_obs(obs, self.core.state);
     }
 
     fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
         let a = f64::from(continuous_action(action, 1, "MountainCarContinuous")[0]);
         let force = a.clamp(MIN_ACTION, MAX_ACTION);
-        let [position, velocity] = self.state;
+        let [position, velocity] = self.core.state;
         let mut velocity = (velocity + (force * POWER - 0.0025 * (3.0 * position).cos()))
             .clamp(-MAX_SPEED, MAX_SPEED);
         let position = (position + velocity).clamp(MIN_POSITION, MAX_POSITION);
@@ -109,8 +99,8 @@ impl Env for MountainCarContinuous {
         let reached = position >= GOAL_POSITION && velocity >= GOAL_VELOCITY;
         let unstable = !(position.is_finite() && velocity.is_finite());
         let reward = if reached { 100.0 } else { 0.0 } - a * a * 0.1;
-        self.state = [f64::from(position as f32), f64::from(velocity as f32)];
-        self.write_obs(obs);
+        self.core.state = [f64::from(position as f32), f64::from(velocity as f32)];
+        write_obs(obs, self.core.state);
         Transition {
             reward,
             terminated: reached || unstable,

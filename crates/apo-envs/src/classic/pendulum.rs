@@ -4,9 +4,9 @@ use std::f64::consts::PI;
 
 use rand::Rng;
 
-use super::continuous_action;
+use super::{continuous_action, symmetric_box, write_obs, Core};
 use crate::env::{Action, Env, StepInfo, Transition};
-use crate::rng::{entropy_rng, reseed, EnvRng};
+use crate::rng::EnvRng;
 use crate::space::Space;
 
 const MAX_SPEED: f64 = 8.0;
@@ -30,53 +30,35 @@ const LENGTH: f64 = 1.0;
 /// - Reset: `θ ~ U(−π, π)`, `θ̇ ~ U(−1, 1)`.
 #[derive(Debug, Clone)]
 pub struct Pendulum {
-    state: [f64; 2],
-    rng: EnvRng,
-    observation_space: Space,
-    action_space: Space,
+    core: Core<2>,
 }
 
 impl Pendulum {
     /// A pendulum with an entropy-seeded RNG and a random initial state; call [`Env::reset`]
     /// to start an episode.
     pub fn new() -> Self {
-        let high = [1.0, 1.0, MAX_SPEED as f32];
-        let mut env = Self {
-            state: [0.0; 2],
-            rng: entropy_rng(),
-            observation_space: Space::Box {
-                low: high.iter().map(|h| -h).collect(),
-                high: high.to_vec(),
-            },
-            action_space: Space::uniform_box(1, -MAX_TORQUE as f32, MAX_TORQUE as f32),
-        };
-        env.sample_state();
-        env
+        Self {
+            core: Core::new(
+                symmetric_box(&[1.0, 1.0, MAX_SPEED as f32]),
+                Space::uniform_box(1, -MAX_TORQUE as f32, MAX_TORQUE as f32),
+                sample_state,
+            ),
+        }
     }
 
     /// The physical state `[θ, θ̇]`.
     pub fn state(&self) -> [f64; 2] {
-        self.state
+        self.core.state
     }
 
     /// Sets the physical state `[θ, θ̇]` (for tests and demonstrations).
     pub fn set_state(&mut self, state: [f64; 2]) {
-        self.state = state;
+        self.core.state = state;
     }
 
-    fn sample_state(&mut self) {
-        self.state = [
-            self.rng.random_range(-PI..PI),
-            self.rng.random_range(-1.0..1.0),
-        ];
-    }
-
-    fn write_obs(&self, obs: &mut [f32]) {
-        let [theta, theta_dot] = self.state;
-        let values = [theta.cos(), theta.sin(), theta_dot];
-        for (o, v) in obs.iter_mut().zip(values) {
-            *o = v as f32;
-        }
+    fn observe(&self, obs: &mut [f32]) {
+        let [theta, theta_dot] = self.core.state;
+        write_obs(obs, [theta.cos(), theta.sin(), theta_dot]);
     }
 }
 
@@ -86,6 +68,11 @@ impl Default for Pendulum {
     }
 }
 
+/// The reset distribution: `θ ~ U(−π, π)`, `θ̇ ~ U(−1, 1)`.
+fn sample_state(rng: &mut EnvRng) -> [f64; 2] {
+    [rng.random_range(-PI..PI), rng.random_range(-1.0..1.0)]
+}
+
 /// `x` wrapped into `[-π, π)` (Gymnasium's `angle_normalize`).
 fn angle_normalize(x: f64) -> f64 {
     (x + PI).rem_euclid(2.0 * PI) - PI
@@ -93,31 +80,30 @@ fn angle_normalize(x: f64) -> f64 {
 
 impl Env for Pendulum {
     fn observation_space(&self) -> &Space {
-        &self.observation_space
+        &self.core.observation_space
     }
 
     fn action_space(&self) -> &Space {
-        &self.action_space
+        &self.core.action_space
     }
 
     fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
-        reseed(&mut self.rng, seed);
-        self.sample_state();
-        self.write_obs(obs);
+        self.core.reset(seed, sample_state);
+        self.observe(obs);
     }
 
     fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
         let u =
             f64::from(continuous_action(action, 1, "Pendulum")[0]).clamp(-MAX_TORQUE, MAX_TORQUE);
-        let [theta, theta_dot] = self.state;
+        let [theta, theta_dot] = self.core.state;
         let cost = angle_normalize(theta).powi(2) + 0.1 * (theta_dot * theta_dot) + 0.001 * (u * u);
         let new_theta_dot = (theta_dot
             + (3.0 * GRAVITY / (2.0 * LENGTH) * theta.sin() + 3.0 / (MASS * LENGTH * LENGTH) * u)
                 * DT)
             .clamp(-MAX_SPEED, MAX_SPEED);
-        self.state = [theta + new_theta_dot * DT, new_theta_dot];
-        let unstable = !self.state.iter().all(|s| s.is_finite());
-        self.write_obs(obs);
+        self.core.state = [theta + new_theta_dot * DT, new_theta_dot];
+        let unstable = !self.core.state.iter().all(|s| s.is_finite());
+        self.observe(obs);
         Transition {
             reward: -cost,
             terminated: unstable,

@@ -71,6 +71,17 @@ fn mass_center(data: &Data) -> [f64; 3] {
     c.map(|x| x / total)
 }
 
+/// The root's x position `qpos[0]`, as [`Task::before_step`] of the tasks that reward the
+/// root's forward velocity.
+fn root_x(data: &Data) -> [f64; 3] {
+    [data.qpos()[0], 0.0, 0.0]
+}
+
+/// The forward velocity over the step of a point whose x is now `x` and was `ctx.before[0]`.
+fn x_velocity(x: f64, ctx: &StepContext<'_>) -> f64 {
+    (x - ctx.before[0]) / ctx.dt
+}
+
 /// `lo < x < hi`.
 fn within(x: f64, (lo, hi): (f64, f64)) -> bool {
     lo < x && x < hi
@@ -278,11 +289,11 @@ impl Task for Swimmer {
     }
 
     fn before_step(&self, data: &Data, _action: &[f32]) -> [f64; 3] {
-        [data.qpos()[0], 0.0, 0.0]
+        root_x(data)
     }
 
     fn reward(&self, data: &Data, ctx: &StepContext<'_>) -> (f64, bool) {
-        let vx = (data.qpos()[0] - ctx.before[0]) / ctx.dt;
+        let vx = x_velocity(data.qpos()[0], ctx);
         (vx - 1e-4 * sum_sq(ctx.action), false)
     }
 
@@ -291,6 +302,26 @@ impl Task for Swimmer {
         w.put(data.qpos()[2..].iter().copied());
         w.put(data.qvel().iter().copied());
     }
+}
+
+/// The reset noise of [`Hopper`] and [`Walker2d`].
+const PLANAR_WALKER_NOISE: ResetNoise = ResetNoise::Uniform {
+    qpos: 5e-3,
+    qvel: 5e-3,
+};
+
+/// The reward and termination of [`Hopper`] and [`Walker2d`]: `vx + 1 − 1e-3·Σ a²` with `vx`
+/// the root's x velocity over the step; terminal when not `healthy`.
+fn planar_walker_reward(data: &Data, ctx: &StepContext<'_>, healthy: bool) -> (f64, bool) {
+    let vx = x_velocity(data.qpos()[0], ctx);
+    (vx + 1.0 - 1e-3 * sum_sq(ctx.action), !healthy)
+}
+
+/// The observation of [`Hopper`] and [`Walker2d`]: `qpos[1..]`, `clip(qvel, ±10)`.
+fn planar_walker_obs(data: &Data, obs: &mut [f32]) {
+    let mut w = ObsWriter::new(obs);
+    w.put(data.qpos()[1..].iter().copied());
+    w.put_clipped(data.qvel(), 10.0);
 }
 
 /// Hopper-v4: hop forward. Reward `vx + 1 − 1e-3·Σ a²`. Healthy while the torso height
@@ -329,29 +360,19 @@ impl Task for Hopper {
     }
 
     fn reset_state(&mut self, rng: &mut EnvRng, qpos: &mut [f64], qvel: &mut [f64]) {
-        ResetNoise::Uniform {
-            qpos: 5e-3,
-            qvel: 5e-3,
-        }
-        .apply(rng, qpos, qvel);
+        PLANAR_WALKER_NOISE.apply(rng, qpos, qvel);
     }
 
     fn before_step(&self, data: &Data, _action: &[f32]) -> [f64; 3] {
-        [data.qpos()[0], 0.0, 0.0]
+        root_x(data)
     }
 
     fn reward(&self, data: &Data, ctx: &StepContext<'_>) -> (f64, bool) {
-        let vx = (data.qpos()[0] - ctx.before[0]) / ctx.dt;
-        (
-            vx + 1.0 - 1e-3 * sum_sq(ctx.action),
-            !Self::is_healthy(data),
-        )
+        planar_walker_reward(data, ctx, Self::is_healthy(data))
     }
 
     fn observe(&self, data: &Data, obs: &mut [f32]) {
-        let mut w = ObsWriter::new(obs);
-        w.put(data.qpos()[1..].iter().copied());
-        w.put_clipped(data.qvel(), 10.0);
+        planar_walker_obs(data, obs);
     }
 }
 
@@ -386,11 +407,11 @@ impl Task for HalfCheetah {
     }
 
     fn before_step(&self, data: &Data, _action: &[f32]) -> [f64; 3] {
-        [data.qpos()[0], 0.0, 0.0]
+        root_x(data)
     }
 
     fn reward(&self, data: &Data, ctx: &StepContext<'_>) -> (f64, bool) {
-        let vx = (data.qpos()[0] - ctx.before[0]) / ctx.dt;
+        let vx = x_velocity(data.qpos()[0], ctx);
         (vx - 0.1 * sum_sq(ctx.action), false)
     }
 
@@ -432,29 +453,19 @@ impl Task for Walker2d {
     }
 
     fn reset_state(&mut self, rng: &mut EnvRng, qpos: &mut [f64], qvel: &mut [f64]) {
-        ResetNoise::Uniform {
-            qpos: 5e-3,
-            qvel: 5e-3,
-        }
-        .apply(rng, qpos, qvel);
+        PLANAR_WALKER_NOISE.apply(rng, qpos, qvel);
     }
 
     fn before_step(&self, data: &Data, _action: &[f32]) -> [f64; 3] {
-        [data.qpos()[0], 0.0, 0.0]
+        root_x(data)
     }
 
     fn reward(&self, data: &Data, ctx: &StepContext<'_>) -> (f64, bool) {
-        let vx = (data.qpos()[0] - ctx.before[0]) / ctx.dt;
-        (
-            vx + 1.0 - 1e-3 * sum_sq(ctx.action),
-            !Self::is_healthy(data),
-        )
+        planar_walker_reward(data, ctx, Self::is_healthy(data))
     }
 
     fn observe(&self, data: &Data, obs: &mut [f32]) {
-        let mut w = ObsWriter::new(obs);
-        w.put(data.qpos()[1..].iter().copied());
-        w.put_clipped(data.qvel(), 10.0);
+        planar_walker_obs(data, obs);
     }
 }
 
@@ -499,7 +510,7 @@ impl Task for Ant {
     }
 
     fn reward(&self, data: &Data, ctx: &StepContext<'_>) -> (f64, bool) {
-        let vx = (body_xpos(data, self.torso)[0] - ctx.before[0]) / ctx.dt;
+        let vx = x_velocity(body_xpos(data, self.torso)[0], ctx);
         let z = data.qpos()[2];
         let healthy = (0.2..=1.0).contains(&z);
         (vx + 1.0 - 0.5 * sum_sq(ctx.action), !healthy)
@@ -531,6 +542,11 @@ const HUMANOID_SIZES: Sizes = Sizes {
     nbody: 14,
 };
 const HUMANOID_OBS: usize = 22 + 23 + 14 * 10 + 14 * 6 + 23 + 14 * 6;
+/// The reset noise of Humanoid and HumanoidStandup.
+const HUMANOID_NOISE: ResetNoise = ResetNoise::Uniform {
+    qpos: 1e-2,
+    qvel: 1e-2,
+};
 
 /// Humanoid-v4: walk forward. Reward `1.25·vx + 5 − 0.1·Σ a²` with `vx` the x velocity of the
 /// centre of mass over the step (Gymnasium v4's code computes no contact cost, whatever its
@@ -552,11 +568,7 @@ impl Task for Humanoid {
     }
 
     fn reset_state(&mut self, rng: &mut EnvRng, qpos: &mut [f64], qvel: &mut [f64]) {
-        ResetNoise::Uniform {
-            qpos: 1e-2,
-            qvel: 1e-2,
-        }
-        .apply(rng, qpos, qvel);
+        HUMANOID_NOISE.apply(rng, qpos, qvel);
     }
 
     fn before_step(&self, data: &Data, _action: &[f32]) -> [f64; 3] {
@@ -564,7 +576,7 @@ impl Task for Humanoid {
     }
 
     fn reward(&self, data: &Data, ctx: &StepContext<'_>) -> (f64, bool) {
-        let vx = (mass_center(data)[0] - ctx.before[0]) / ctx.dt;
+        let vx = x_velocity(mass_center(data)[0], ctx);
         let healthy = within(data.qpos()[2], (1.0, 2.0));
         (1.25 * vx + 5.0 - 0.1 * sum_sq(ctx.action), !healthy)
     }
@@ -595,11 +607,7 @@ impl Task for HumanoidStandup {
     }
 
     fn reset_state(&mut self, rng: &mut EnvRng, qpos: &mut [f64], qvel: &mut [f64]) {
-        ResetNoise::Uniform {
-            qpos: 1e-2,
-            qvel: 1e-2,
-        }
-        .apply(rng, qpos, qvel);
+        HUMANOID_NOISE.apply(rng, qpos, qvel);
     }
 
     fn reward(&self, data: &Data, ctx: &StepContext<'_>) -> (f64, bool) {
