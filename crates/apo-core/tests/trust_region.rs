@@ -290,6 +290,8 @@ struct Outcomes {
     accepted_first: usize,
     backtracked: usize,
     rejected: usize,
+    /// Tries refused because their KL (computed here) exceeded δ.
+    kl_refusals: usize,
 }
 
 /// Runs a trust-region step on the MLP policy and checks every promise of the line
@@ -331,6 +333,9 @@ fn check_line_search(
             assert_close(&format!("{name}: reported KL"), report.kl, kl, 1e-9, 1e-6);
             for i in 0..r#try {
                 assert!(!acceptable(&candidate(i), -1e-9), "{name}: try {i} was acceptable but try {try} was taken", try = r#try);
+                if ref_mean_kl(cfg, &candidate(i), batch) > config.max_kl {
+                    outcomes.kl_refusals += 1;
+                }
             }
             if r#try == 0 {
                 outcomes.accepted_first += 1;
@@ -351,32 +356,42 @@ fn check_line_search(
     }
 }
 
+/// Over several batches, both policy families, TRPO and APO (up to k = 1000), and two
+/// trust regions: the default (δ = 0.01, damping 0.1) and a wide, undamped one
+/// (δ = 0.2, damping 1e-3) where the quadratic model underestimates the KL, so that
+/// tries with KL > δ occur and must be refused.
 #[test]
 fn line_search_never_breaks_the_kl_bound() {
-    let config = TrustRegionConfig { max_kl: 0.01, ..Default::default() };
+    let configs = [
+        TrustRegionConfig { max_kl: 0.01, ..Default::default() },
+        TrustRegionConfig { max_kl: 0.2, cg_damping: 1e-3, ..Default::default() },
+    ];
     let objectives = [
         ("trpo", Objective::Trpo),
         ("apo paper params", Objective::Apo(ApoParams { k: 7.0, omega1: 0.005, h_max: HMax::Fixed(0.005), gamma: 0.99 })),
         ("apo k = 100", Objective::Apo(ApoParams { k: 100.0, omega1: 0.05, h_max: HMax::Fixed(0.5), gamma: 0.9 })),
         ("apo k = 1000, estimated |H|", Objective::Apo(ApoParams { k: 1000.0, omega1: 0.01, h_max: HMax::Estimated, gamma: 0.95 })),
     ];
-    let mut outcomes = Outcomes { accepted_first: 0, backtracked: 0, rejected: 0 };
+    let mut outcomes = Outcomes { accepted_first: 0, backtracked: 0, rejected: 0, kl_refusals: 0 };
     for (pname, cfg) in common::backend::policy_cases() {
         for seed in 0..3u64 {
             let mut rng = Rng::new(1000 + seed);
             let theta_j = random_theta(&cfg, &mut rng);
             let batch = sample_batch(&cfg, &theta_j, 48, 1.0, &mut rng);
             for (oname, obj) in &objectives {
-                let name = format!("{pname}, seed {seed}, {oname}");
-                check_line_search(&name, &cfg, obj, &theta_j, &batch, &config, &mut outcomes);
+                for config in &configs {
+                    let name = format!("{pname}, seed {seed}, {oname}, δ {}", config.max_kl);
+                    check_line_search(&name, &cfg, obj, &theta_j, &batch, config, &mut outcomes);
+                }
             }
         }
     }
     eprintln!(
-        "line search: {} accepted at try 0, {} after backtracking, {} rejected",
-        outcomes.accepted_first, outcomes.backtracked, outcomes.rejected
+        "line search: {} accepted at try 0, {} after backtracking, {} rejected; {} tries refused for KL > δ",
+        outcomes.accepted_first, outcomes.backtracked, outcomes.rejected, outcomes.kl_refusals
     );
     assert!(outcomes.backtracked > 0, "no case exercised the backtracking");
+    assert!(outcomes.kl_refusals > 0, "no try exceeded the KL bound: the bound was not exercised");
 }
 
 /// APO with γ = 0.99 and large critic values: at θ_j the bias is 0 and the `min_J_sq`
@@ -395,7 +410,7 @@ fn line_search_keeps_theta_when_no_try_is_acceptable() {
     let r = ref_objective(&cfg, &apo, &theta_j, &batch);
     assert!(r.switch_margin.unwrap() > 0.0 && r.min_j_sq.unwrap() > 1.0, "test data: switch on with a large min_J_sq");
 
-    let mut outcomes = Outcomes { accepted_first: 0, backtracked: 0, rejected: 0 };
+    let mut outcomes = Outcomes { accepted_first: 0, backtracked: 0, rejected: 0, kl_refusals: 0 };
     let short = TrustRegionConfig { max_kl: 0.01, backtrack_iters: 10, ..Default::default() };
     check_line_search("10 tries", &cfg, &apo, &theta_j, &batch, &short, &mut outcomes);
     assert_eq!(outcomes.rejected, 1, "the search should have been rejected");
