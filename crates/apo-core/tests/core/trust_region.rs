@@ -1,7 +1,7 @@
 //! The trust-region step: conjugate gradient, the natural-gradient step on a problem with
 //! a known Fisher matrix, and the line search's guarantees.
 
-mod common;
+use crate::common;
 
 use apo_core::distribution::DistParams;
 use apo_core::objective::{ApoParams, HMax, Objective};

@@ -11,7 +11,7 @@
 //! The two agree to ~1e-8, which shows that the reference really is float64 (a float32
 //! finite difference is good to ~1e-2 only).
 
-mod common;
+use crate::common;
 
 use burn::backend::Wgpu;
 use common::backend::*;

@@ -1,7 +1,7 @@
 //! The learner: one update per algorithm on a tiny synthetic batch collected by its own
 //! policy, with the reported numbers checked independently; config validation.
 
-mod common;
+use crate::common;
 
 use apo_core::buffer::{Batch, BufferLayout, RolloutBuffer};
 use apo_core::config::{AlgoConfig, Algorithm};

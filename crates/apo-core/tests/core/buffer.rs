@@ -1,7 +1,7 @@
 //! The rollout buffer: one-step advantages, GAE and rewards-to-go for each way a path
 //! ends, against hand-computed trajectories; normalization; several paths in one batch.
 
-mod common;
+use crate::common;
 
 use apo_core::buffer::{normalize, BufferLayout, RolloutBuffer};
 use apo_core::distribution::DistParams;

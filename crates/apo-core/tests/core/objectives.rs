@@ -3,7 +3,7 @@
 //! (tight tolerances) and on wgpu (float32 tolerances). The NdArray<f32> runs are in
 //! `ndarray_f32.rs`.
 
-mod common;
+use crate::common;
 
 use apo_core::objective::{ApoParams, HMax, Objective};
 use apo_core::policy::{MlpPolicyConfig, Policy, PolicyFamily};

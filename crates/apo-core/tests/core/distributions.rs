@@ -1,7 +1,7 @@
 //! Action distributions (log-prob, entropy, analytic KL) against closed forms computed by
 //! hand in float64, and the built-in MLP policy against a plain-Rust forward pass.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::{E, LN_2, PI};
 

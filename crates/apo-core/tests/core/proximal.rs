@@ -1,7 +1,7 @@
 //! The proximal step (Adam on the clipped objective with KL early stopping) and the value
 //! update, with the objective, the approximate KL and the MSE computed independently.
 
-mod common;
+use crate::common;
 
 use apo_core::flat::{flatten, to_host};
 use apo_core::objective::{ApoParams, HMax, Objective};
