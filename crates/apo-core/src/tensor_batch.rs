@@ -78,67 +78,61 @@ impl<B: Backend> TensorBatch<B> {
             TensorData::new(indices.iter().map(|&i| i as i64).collect::<Vec<_>>(), [indices.len()]),
             &device,
         );
-        let s2 = |t: &Tensor<B, 2>| t.clone().select(0, idx.clone());
-        let s1 = |t: &Tensor<B, 1>| t.clone().select(0, idx.clone());
-        let dist_old = match &self.dist_old {
-            DistParams::Gaussian { mean, log_std } => DistParams::Gaussian { mean: s2(mean), log_std: s2(log_std) },
-            DistParams::Categorical { logits } => DistParams::Categorical { logits: s2(logits) },
-        };
-        Self {
-            obs: s2(&self.obs),
-            actions: s2(&self.actions),
-            logp_old: s1(&self.logp_old),
-            dist_old,
-            value: s1(&self.value),
-            delta: s1(&self.delta),
-            adv: s1(&self.adv),
-            ret: s1(&self.ret),
-        }
+        self.map(&Select(idx))
     }
 
     /// The same data as constants of the autodiff backend `AB` over `B` (no copy).
     pub fn lift<AB: AutodiffBackend<InnerBackend = B>>(&self) -> TensorBatch<AB> {
-        fn up<AB: AutodiffBackend, const D: usize>(t: &Tensor<AB::InnerBackend, D>) -> Tensor<AB, D> {
-            Tensor::from_inner(t.clone())
-        }
-        let dist_old = match &self.dist_old {
-            DistParams::Gaussian { mean, log_std } => {
-                DistParams::Gaussian { mean: up::<AB, 2>(mean), log_std: up::<AB, 2>(log_std) }
-            }
-            DistParams::Categorical { logits } => DistParams::Categorical { logits: up::<AB, 2>(logits) },
-        };
-        TensorBatch {
-            obs: up::<AB, 2>(&self.obs),
-            actions: up::<AB, 2>(&self.actions),
-            logp_old: up::<AB, 1>(&self.logp_old),
-            dist_old,
-            value: up::<AB, 1>(&self.value),
-            delta: up::<AB, 1>(&self.delta),
-            adv: up::<AB, 1>(&self.adv),
-            ret: up::<AB, 1>(&self.ret),
-        }
+        self.map(&Lift)
     }
 
-    /// The same data on another backend (through the host).
-    pub fn to_backend<B2: Backend>(&self, device: &B2::Device) -> TensorBatch<B2> {
-        fn mv<B: Backend, B2: Backend, const D: usize>(t: &Tensor<B, D>, device: &B2::Device) -> Tensor<B2, D> {
-            Tensor::from_data(t.to_data(), device)
-        }
+    /// Applies `f` to every field.
+    fn map<B2: Backend>(&self, f: &impl FieldMap<B, B2>) -> TensorBatch<B2> {
         let dist_old = match &self.dist_old {
             DistParams::Gaussian { mean, log_std } => {
-                DistParams::Gaussian { mean: mv(mean, device), log_std: mv(log_std, device) }
+                DistParams::Gaussian { mean: f.two(mean), log_std: f.two(log_std) }
             }
-            DistParams::Categorical { logits } => DistParams::Categorical { logits: mv(logits, device) },
+            DistParams::Categorical { logits } => DistParams::Categorical { logits: f.two(logits) },
         };
         TensorBatch {
-            obs: mv(&self.obs, device),
-            actions: mv(&self.actions, device),
-            logp_old: mv(&self.logp_old, device),
+            obs: f.two(&self.obs),
+            actions: f.two(&self.actions),
+            logp_old: f.one(&self.logp_old),
             dist_old,
-            value: mv(&self.value, device),
-            delta: mv(&self.delta, device),
-            adv: mv(&self.adv, device),
-            ret: mv(&self.ret, device),
+            value: f.one(&self.value),
+            delta: f.one(&self.delta),
+            adv: f.one(&self.adv),
+            ret: f.one(&self.ret),
         }
+    }
+}
+
+/// A transformation of every field of a batch (`[n]` and `[n, width]` tensors alike).
+trait FieldMap<B: Backend, B2: Backend> {
+    fn one(&self, t: &Tensor<B, 1>) -> Tensor<B2, 1>;
+    fn two(&self, t: &Tensor<B, 2>) -> Tensor<B2, 2>;
+}
+
+/// Rows by index.
+struct Select<B: Backend>(Tensor<B, 1, burn::tensor::Int>);
+
+impl<B: Backend> FieldMap<B, B> for Select<B> {
+    fn one(&self, t: &Tensor<B, 1>) -> Tensor<B, 1> {
+        t.clone().select(0, self.0.clone())
+    }
+    fn two(&self, t: &Tensor<B, 2>) -> Tensor<B, 2> {
+        t.clone().select(0, self.0.clone())
+    }
+}
+
+/// Into an autodiff backend, as constants.
+struct Lift;
+
+impl<AB: AutodiffBackend> FieldMap<AB::InnerBackend, AB> for Lift {
+    fn one(&self, t: &Tensor<AB::InnerBackend, 1>) -> Tensor<AB, 1> {
+        Tensor::from_inner(t.clone())
+    }
+    fn two(&self, t: &Tensor<AB::InnerBackend, 2>) -> Tensor<AB, 2> {
+        Tensor::from_inner(t.clone())
     }
 }
