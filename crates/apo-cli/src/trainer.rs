@@ -327,11 +327,11 @@ pub fn train<B: Backend>(
         observer.epoch(&row, config.epochs);
         rows.push(row);
         progress::write(&progress_path, &rows)?;
-        if state.epoch % config.checkpoint_every == 0 || state.epoch == config.epochs {
+        if state.epoch.is_multiple_of(config.checkpoint_every) || state.epoch == config.epochs {
             checkpoint::save(run_dir, &learner, &state)?;
         }
         if stop.load(Ordering::Relaxed) {
-            if state.epoch % config.checkpoint_every != 0 {
+            if !state.epoch.is_multiple_of(config.checkpoint_every) {
                 checkpoint::save(run_dir, &learner, &state)?;
             }
             return Ok(TrainEnd::Interrupted);

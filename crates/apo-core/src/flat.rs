@@ -42,7 +42,7 @@ impl<B: Backend> ModuleMapper<B> for Distribute<B> {
         let start = self.offset;
         self.offset += n;
         let dims: [usize; D] = std::array::from_fn(|i| shape[i]);
-        Param::initialized(param.id, self.theta.clone().slice([start..start + n]).reshape(dims))
+        Param::initialized(param.id, self.theta.clone().slice(start..start + n).reshape(dims))
     }
 }
 

@@ -24,6 +24,12 @@ use crate::value::{ValueConfig, ValueNet};
 
 type Ad<B> = Autodiff<B>;
 
+/// The Adam state of the policy of family `F` on `Autodiff<B>`.
+pub type PolicyAdam<B, F> = OptimizerAdaptor<Adam, <F as PolicyFamily>::Policy<Autodiff<B>>, Autodiff<B>>;
+
+/// The Adam state of the value network on `Autodiff<B>`.
+pub type ValueAdam<B> = OptimizerAdaptor<Adam, ValueNet<Autodiff<B>>, Autodiff<B>>;
+
 /// What one update did, for the epoch's log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct UpdateReport {
@@ -58,8 +64,8 @@ where
     device: B::Device,
     policy: F::Policy<Ad<B>>,
     value: ValueNet<Ad<B>>,
-    policy_optim: OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>,
-    value_optim: OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>,
+    policy_optim: PolicyAdam<B, F>,
+    value_optim: ValueAdam<B>,
 }
 
 static INIT_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -145,7 +151,7 @@ where
     /// The optimizers (for checkpoints).
     pub fn optimizers(
         &self,
-    ) -> (&OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>, &OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>) {
+    ) -> (&PolicyAdam<B, F>, &ValueAdam<B>) {
         (&self.policy_optim, &self.value_optim)
     }
 
@@ -154,8 +160,8 @@ where
         &mut self,
         policy: F::Policy<Ad<B>>,
         value: ValueNet<Ad<B>>,
-        policy_optim: OptimizerAdaptor<Adam, F::Policy<Ad<B>>, Ad<B>>,
-        value_optim: OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>,
+        policy_optim: PolicyAdam<B, F>,
+        value_optim: ValueAdam<B>,
     ) {
         self.policy = policy;
         self.value = value;

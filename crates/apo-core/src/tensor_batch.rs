@@ -33,7 +33,7 @@ fn t1<B: Backend>(v: &[f32], device: &B::Device) -> Tensor<B, 1> {
 }
 
 fn t2<B: Backend>(v: &[f32], rows: usize, device: &B::Device) -> Tensor<B, 2> {
-    let cols = if rows == 0 { 0 } else { v.len() / rows };
+    let cols = v.len().checked_div(rows).unwrap_or(0);
     Tensor::from_data(TensorData::new(v.to_vec(), [rows, cols]), device)
 }
 
