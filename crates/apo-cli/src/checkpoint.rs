@@ -1,19 +1,27 @@
-//! Checkpoints: everything needed to continue a run.
+//! Checkpoints: everything needed to continue a run, verified before it is used.
 //!
-//! A checkpoint is a directory `checkpoints/latest/` holding the policy and value networks
-//! and both Adam states (Burn's named MessagePack recorder, full precision) and
-//! `state.json` (epoch, step and time counters, observation-normalizer statistics).
-//! Rollout randomness is reseeded from the run seed at each epoch, so no RNG state has to
-//! be saved for a resumed run to reproduce an uninterrupted one.
+//! A checkpoint is a directory under `checkpoints/` holding the policy and value networks
+//! and both Adam states (Burn's named MessagePack recorder, full precision), `state.json`
+//! (epoch, step and time counters, observation-normalizer statistics) and `manifest.json`:
+//! the shapes of the networks and the size and CRC-32C of every other file. Loading checks the
+//! manifest first — a flipped byte, a truncated file, or a network file copied from another
+//! run is an error naming the file — and checks the shapes against the run's config before
+//! Burn reads a record. Rollout randomness is reseeded from the run seed at each epoch, so no
+//! RNG state has to be saved for a resumed run to reproduce an uninterrupted one.
 //!
-//! Writing is atomic: the files go to a fresh temporary directory, which then replaces
-//! `latest` (the old one is moved to `previous` first and deleted last). A crash at any
-//! point leaves `latest` or `previous` complete, and [`load`] falls back to `previous`.
+//! Writing is atomic and durable: the files go to a fresh temporary directory and are synced
+//! with it; then `latest` is renamed to `previous`, the temporary directory to `latest`, the
+//! parent is synced and `previous` is deleted. A crash at any point leaves `latest` or
+//! `previous` complete, and [`load`] falls back to `previous` when `latest` is missing.
+//! With `keep_checkpoint_every = N` every N-th epoch's checkpoint is also kept as
+//! `epoch-<N>` (see [`Which`]).
 
+use std::collections::BTreeMap;
+use std::fmt;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use apo_core::{Learner, MlpPolicyConfig, PolicyFamily};
+use apo_core::{ActionKind, Learner, MlpPolicyConfig, PolicyFamily};
 use apo_envs::RunningMeanStd;
 use burn::backend::Autodiff;
 use burn::module::Module;
@@ -24,7 +32,13 @@ use serde::{Deserialize, Serialize};
 
 use crate::atomic;
 
-const FORMAT: u32 = 1;
+/// The checkpoint format this version writes (format 1 had no manifest; it is still read).
+const FORMAT: u32 = 2;
+
+/// The network and optimizer files of a checkpoint (Burn adds `.mpk`).
+const RECORDS: [&str; 4] = ["policy", "value", "policy_optim", "value_optim"];
+const STATE: &str = "state.json";
+const MANIFEST: &str = "manifest.json";
 
 /// The counters saved with the networks.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -41,6 +55,60 @@ pub struct TrainState {
     pub normalizer: Option<RunningMeanStd>,
 }
 
+impl TrainState {
+    /// The state of a run that has not completed an epoch.
+    pub fn new(normalizer: Option<RunningMeanStd>) -> Self {
+        Self { format: FORMAT, epoch: 0, env_steps: 0, elapsed_s: 0.0, normalizer }
+    }
+}
+
+/// The shapes of a run's networks: recorded in each checkpoint and checked on load.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shapes {
+    /// Observation dimension (the networks' input).
+    pub observation_dim: usize,
+    /// The policy's action kind and size.
+    pub action: ActionKind,
+    /// Hidden layer sizes of both networks.
+    pub hidden: Vec<usize>,
+    /// Whether the observations are normalized (the normalizer is then in `state.json`).
+    pub normalize_obs: bool,
+}
+
+impl fmt::Display for Shapes {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let action = match self.action {
+            ActionKind::Continuous { dim } => format!("box({dim})"),
+            ActionKind::Discrete { n } => format!("discrete({n})"),
+        };
+        write!(
+            f,
+            "observation dim {}, actions {action}, hidden {:?}, normalize_obs {}",
+            self.observation_dim, self.hidden, self.normalize_obs
+        )
+    }
+}
+
+/// Size and checksum of one file of a checkpoint.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+struct FileSum {
+    bytes: u64,
+    crc32c: String,
+}
+
+/// `manifest.json`: the shapes and the checksum of every other file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Manifest {
+    format: u32,
+    shapes: Shapes,
+    files: BTreeMap<String, FileSum>,
+}
+
+fn file_sum(path: &Path) -> anyhow::Result<FileSum> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(FileSum { bytes: bytes.len() as u64, crc32c: format!("{:08x}", crc32c::crc32c(&bytes)) })
+}
+
 type Rec = NamedMpkFileRecorder<FullPrecisionSettings>;
 
 fn recorder() -> Rec {
@@ -49,26 +117,61 @@ fn recorder() -> Rec {
 
 /// `checkpoints/` of a run directory.
 pub fn dir(run: &Path) -> PathBuf {
-    run.join("checkpoints")
+    run.join(crate::run_dir::CHECKPOINTS)
 }
 
-/// Writes a checkpoint of `learner` and `state` into `run`'s `checkpoints/latest`, atomically.
-pub fn save<B: Backend>(run: &Path, learner: &Learner<B, MlpPolicyConfig>, state: &TrainState) -> anyhow::Result<()> {
+/// Which checkpoint of a run to read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Which {
+    /// The newest (`checkpoints/latest`, or `previous` after a crash during a swap).
+    Latest,
+    /// The one kept at this epoch (`checkpoints/epoch-<N>`, see `keep_checkpoint_every`).
+    Epoch(usize),
+}
+
+impl std::str::FromStr for Which {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "latest" {
+            return Ok(Which::Latest);
+        }
+        s.trim_start_matches("epoch-")
+            .parse()
+            .map(Which::Epoch)
+            .map_err(|_| format!("`{s}` is not a checkpoint: use `latest` or an epoch number kept by keep_checkpoint_every"))
+    }
+}
+
+fn kept_name(epoch: usize) -> String {
+    format!("epoch-{epoch:06}")
+}
+
+/// Epochs of the checkpoints kept in `run` (`checkpoints/epoch-<N>`), ascending.
+pub fn kept_epochs(run: &Path) -> Vec<usize> {
+    let mut epochs: Vec<usize> = std::fs::read_dir(dir(run))
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.strip_prefix("epoch-")?.parse().ok())
+        .collect();
+    epochs.sort_unstable();
+    epochs
+}
+
+/// Writes a checkpoint of `learner` and `state` into `run`'s `checkpoints/latest`,
+/// atomically and durably; with `keep`, also keeps a copy as `checkpoints/epoch-<N>`.
+pub fn save<B: Backend>(
+    run: &Path,
+    learner: &Learner<B, MlpPolicyConfig>,
+    state: &TrainState,
+    shapes: &Shapes,
+    keep: bool,
+) -> anyhow::Result<()> {
     let root = dir(run);
     std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
     let tmp = root.join(format!(".tmp-{}", state.epoch));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp)?;
-    }
-    std::fs::create_dir_all(&tmp)?;
-    let (policy, value) = learner.networks();
-    let (policy_optim, value_optim) = learner.optimizers();
-    let rec = recorder();
-    policy.clone().save_file(tmp.join("policy"), &rec).context("saving the policy")?;
-    value.clone().save_file(tmp.join("value"), &rec).context("saving the value network")?;
-    rec.record(policy_optim.to_record(), tmp.join("policy_optim")).context("saving the policy optimizer")?;
-    rec.record(value_optim.to_record(), tmp.join("value_optim")).context("saving the value optimizer")?;
-    atomic::write(&tmp.join("state.json"), serde_json::to_string_pretty(state)?.as_bytes())?;
+    write_into(&tmp, learner, state, shapes).with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
 
     let (latest, previous) = (root.join("latest"), root.join("previous"));
     if previous.exists() {
@@ -78,58 +181,187 @@ pub fn save<B: Backend>(run: &Path, learner: &Learner<B, MlpPolicyConfig>, state
         std::fs::rename(&latest, &previous)?;
     }
     std::fs::rename(&tmp, &latest)?;
+    atomic::sync_dir(&root)?;
     if previous.exists() {
         std::fs::remove_dir_all(&previous)?;
+    }
+    if keep {
+        let kept = root.join(kept_name(state.epoch));
+        let tmp = root.join(format!(".tmp-keep-{}", state.epoch));
+        write_into(&tmp, learner, state, shapes)?;
+        if kept.exists() {
+            std::fs::remove_dir_all(&kept)?;
+        }
+        std::fs::rename(&tmp, &kept)?;
+        atomic::sync_dir(&root)?;
     }
     Ok(())
 }
 
-/// Whether `run` has a checkpoint to resume from.
-pub fn exists(run: &Path) -> bool {
-    let root = dir(run);
-    root.join("latest").join("state.json").exists() || root.join("previous").join("state.json").exists()
+/// Writes and syncs every file of a checkpoint into the fresh directory `tmp`.
+fn write_into<B: Backend>(
+    tmp: &Path,
+    learner: &Learner<B, MlpPolicyConfig>,
+    state: &TrainState,
+    shapes: &Shapes,
+) -> anyhow::Result<()> {
+    if tmp.exists() {
+        std::fs::remove_dir_all(tmp)?;
+    }
+    std::fs::create_dir_all(tmp)?;
+    let (policy, value) = learner.networks();
+    let (policy_optim, value_optim) = learner.optimizers();
+    let rec = recorder();
+    policy.clone().save_file(tmp.join("policy"), &rec).context("saving the policy")?;
+    value.clone().save_file(tmp.join("value"), &rec).context("saving the value network")?;
+    rec.record(policy_optim.to_record(), tmp.join("policy_optim")).context("saving the policy optimizer")?;
+    rec.record(value_optim.to_record(), tmp.join("value_optim")).context("saving the value optimizer")?;
+    atomic::write(&tmp.join(STATE), serde_json::to_string_pretty(&TrainState { format: FORMAT, ..state.clone() })?.as_bytes())?;
+    let mut files = BTreeMap::new();
+    for name in RECORDS.iter().map(|r| format!("{r}.mpk")).chain([STATE.to_string()]) {
+        let path = tmp.join(&name);
+        atomic::sync_file(&path)?;
+        files.insert(name, file_sum(&path)?);
+    }
+    let manifest = Manifest { format: FORMAT, shapes: shapes.clone(), files };
+    atomic::write(&tmp.join(MANIFEST), serde_json::to_string_pretty(&manifest)?.as_bytes())?;
+    Ok(())
 }
 
-/// Loads the checkpoint of `run` into `learner` and returns its counters.
-pub fn load<B: Backend>(run: &Path, learner: &mut Learner<B, MlpPolicyConfig>, device: &B::Device) -> anyhow::Result<TrainState> {
+/// The directory of checkpoint `which` of `run`, if there is one.
+pub fn locate(run: &Path, which: &Which) -> anyhow::Result<Option<PathBuf>> {
     let root = dir(run);
-    let from = [root.join("latest"), root.join("previous")]
-        .into_iter()
-        .find(|d| d.join("state.json").exists());
-    let Some(from) = from else {
-        bail!("no checkpoint in {}: the run has not completed an epoch; start it again with --force", root.display());
-    };
-    load_from(&from, learner, device).with_context(|| {
-        format!(
-            "the checkpoint in {} is corrupt or from an incompatible run; delete {} to start over",
-            from.display(),
-            root.display()
-        )
-    })
+    match which {
+        Which::Latest => Ok([root.join("latest"), root.join("previous")].into_iter().find(|d| d.is_dir())),
+        Which::Epoch(epoch) => {
+            let path = root.join(kept_name(*epoch));
+            if path.is_dir() {
+                return Ok(Some(path));
+            }
+            let kept = kept_epochs(run);
+            bail!(
+                "{} has no checkpoint of epoch {epoch} (kept: {})",
+                run.display(),
+                if kept.is_empty() { "none; set keep_checkpoint_every to keep some".to_string() } else { format!("{kept:?}") }
+            )
+        }
+    }
 }
 
-fn load_from<B: Backend>(from: &Path, learner: &mut Learner<B, MlpPolicyConfig>, device: &B::Device) -> anyhow::Result<TrainState> {
-    let text = std::fs::read_to_string(from.join("state.json"))?;
-    let state: TrainState = serde_json::from_str(&text).context("state.json")?;
-    if state.format != FORMAT {
-        bail!("checkpoint format {} (this version reads {FORMAT})", state.format);
+/// Loads checkpoint `from` (a directory from [`locate`]) into `learner` after checking its
+/// files against their manifest and its shapes against `shapes`; returns its counters.
+pub fn load<B: Backend>(
+    from: &Path,
+    learner: &mut Learner<B, MlpPolicyConfig>,
+    shapes: &Shapes,
+    device: &B::Device,
+) -> anyhow::Result<TrainState> {
+    let state_path = from.join(STATE);
+    let text = std::fs::read_to_string(&state_path).with_context(|| format!("cannot read {}", state_path.display()))?;
+    let manifest_path = from.join(MANIFEST);
+    if manifest_path.exists() {
+        verify(from, shapes)?;
+    }
+    let state: TrainState = serde_json::from_str(&text)
+        .with_context(|| format!("{} is corrupt or not a checkpoint state", state_path.display()))?;
+    match state.format {
+        FORMAT => {}
+        1 => tracing::warn!(checkpoint = %from.display(), "format-1 checkpoint without checksums; loading it unverified"),
+        other => bail!("{} has checkpoint format {other}; this version reads 1 and {FORMAT}", state_path.display()),
+    }
+    match (&state.normalizer, shapes.normalize_obs) {
+        (Some(n), true) if n.dim() == shapes.observation_dim => {}
+        (Some(n), true) => bail!(
+            "{}: the observation normalizer has dimension {}, the run's environment {}",
+            state_path.display(),
+            n.dim(),
+            shapes.observation_dim
+        ),
+        (None, false) => {}
+        (Some(_), false) | (None, true) => bail!(
+            "{}: the checkpoint {} an observation normalizer but config.toml says normalize_obs = {}",
+            state_path.display(),
+            if state.normalizer.is_some() { "has" } else { "has no" },
+            shapes.normalize_obs
+        ),
     }
     let rec = recorder();
     let (policy, value) = learner.networks();
-    let policy = policy.clone().load_file(from.join("policy"), &rec, device).context("policy.mpk")?;
-    let value = value.clone().load_file(from.join("value"), &rec, device).context("value.mpk")?;
     let (policy_optim, value_optim) = learner.optimizers();
-    let policy_optim = policy_optim
-        .clone()
-        .load_record(rec.load(from.join("policy_optim"), device).context("policy_optim.mpk")?);
-    let value_optim = value_optim
-        .clone()
-        .load_record(rec.load(from.join("value_optim"), device).context("value_optim.mpk")?);
-    // A record of other sizes loads silently in some Burn versions: check the shapes.
+    let (policy, value, policy_optim, value_optim) = (policy.clone(), value.clone(), policy_optim.clone(), value_optim.clone());
+    let loaded = no_panic(|| -> anyhow::Result<_> {
+        let file = |name: &str| from.join(name);
+        let corrupt = |name: &str| format!("{} is corrupt or from an incompatible run", file(&format!("{name}.mpk")).display());
+        let policy = policy.load_file(file("policy"), &rec, device).with_context(|| corrupt("policy"))?;
+        let value = value.load_file(file("value"), &rec, device).with_context(|| corrupt("value"))?;
+        let policy_optim = policy_optim.load_record(rec.load(file("policy_optim"), device).with_context(|| corrupt("policy_optim"))?);
+        let value_optim = value_optim.load_record(rec.load(file("value_optim"), device).with_context(|| corrupt("value_optim"))?);
+        Ok((policy, value, policy_optim, value_optim))
+    })
+    .with_context(|| format!("the checkpoint in {} is corrupt or from an incompatible run", from.display()))??;
+    let (policy, value, policy_optim, value_optim) = loaded;
+    // A record of other sizes loads silently in some Burn versions: check the sizes too.
     let expected = learner.family().init::<Autodiff<B>>(device).num_params();
     if policy.num_params() != expected {
-        bail!("policy has {} parameters, the config says {expected}", policy.num_params());
+        bail!(
+            "{} holds {} policy parameters, the run's config needs {expected}",
+            from.join("policy.mpk").display(),
+            policy.num_params()
+        );
     }
     learner.restore(policy, value, policy_optim, value_optim);
     Ok(state)
+}
+
+/// Checks every file of checkpoint `from` against its manifest, and the shapes.
+fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
+    let path = from.join(MANIFEST);
+    let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+    let manifest: Manifest =
+        serde_json::from_str(&text).with_context(|| format!("{} is corrupt (not a checkpoint manifest)", path.display()))?;
+    for name in RECORDS.iter().map(|r| format!("{r}.mpk")).chain([STATE.to_string()]) {
+        let file = from.join(&name);
+        let Some(expected) = manifest.files.get(&name) else {
+            bail!("{} does not list {name}; the checkpoint is corrupt", path.display());
+        };
+        if !file.exists() {
+            bail!("{} is missing from the checkpoint", file.display());
+        }
+        let found = file_sum(&file)?;
+        if &found != expected {
+            bail!(
+                "{} is corrupt: {} bytes with CRC-32C {}, the checkpoint's manifest says {} bytes with CRC-32C {}",
+                file.display(),
+                found.bytes,
+                found.crc32c,
+                expected.bytes,
+                expected.crc32c
+            );
+        }
+    }
+    if &manifest.shapes != shapes {
+        bail!(
+            "the networks in {} ({}) do not fit this run ({}): the checkpoint is from another run or config.toml was edited",
+            from.display(),
+            manifest.shapes,
+            shapes
+        );
+    }
+    Ok(())
+}
+
+/// Runs `f`, turning a panic inside it (a malformed record deep in Burn) into an error.
+fn no_panic<T>(f: impl FnOnce() -> T) -> anyhow::Result<T> {
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    std::panic::set_hook(hook);
+    result.map_err(|payload| {
+        let message = payload
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_else(|| "unknown panic".to_string());
+        anyhow::anyhow!("reading it failed: {message}")
+    })
 }

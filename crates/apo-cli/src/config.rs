@@ -9,7 +9,7 @@
 use std::fmt;
 use std::path::Path;
 
-use apo_core::{AlgoConfig, Algorithm};
+use apo_core::{ActionKind, AlgoConfig, Algorithm};
 use serde::{Deserialize, Serialize};
 
 /// The compute backend of the updates.
@@ -49,8 +49,12 @@ pub struct RunConfig {
     pub normalize_obs: bool,
     /// Backend of the updates.
     pub backend: BackendKind,
-    /// Write a checkpoint every this many epochs (and always at the end).
+    /// Write a checkpoint every this many epochs (and always at the end and on interrupt).
     pub checkpoint_every: usize,
+    /// Also keep the checkpoint of every this many epochs as `checkpoints/epoch-<N>`
+    /// (0: keep only the latest).
+    #[serde(default)]
+    pub keep_checkpoint_every: usize,
     /// Hidden layer sizes of the policy and value networks (paper: [64, 64]).
     pub hidden: Vec<usize>,
     /// Initial log standard deviation of Gaussian policies.
@@ -114,6 +118,7 @@ impl RunConfig {
             normalize_obs: false,
             backend: BackendKind::Cpu,
             checkpoint_every: 1,
+            keep_checkpoint_every: 0,
             hidden: vec![64, 64],
             init_log_std: -0.5,
             algo: AlgoConfig::paper_defaults(algo),
@@ -176,6 +181,9 @@ impl RunConfig {
         if self.num_envs == 0 {
             return fail("num_envs", self.num_envs.to_string(), "must be ≥ 1");
         }
+        if self.num_envs > MAX_NUM_ENVS {
+            return fail("num_envs", self.num_envs.to_string(), &format!("must be ≤ {MAX_NUM_ENVS}"));
+        }
         if self.steps_per_epoch < self.num_envs {
             return fail("steps_per_epoch", self.steps_per_epoch.to_string(), "must be ≥ num_envs");
         }
@@ -185,16 +193,169 @@ impl RunConfig {
         if self.hidden.is_empty() || self.hidden.contains(&0) {
             return fail("hidden", format!("{:?}", self.hidden), "must be a non-empty list of positive sizes");
         }
-        if !self.init_log_std.is_finite() {
-            return fail("init_log_std", self.init_log_std.to_string(), "must be finite");
+        if !(-20.0..=2.0).contains(&self.init_log_std) {
+            return fail("init_log_std", self.init_log_std.to_string(), "must be in [-20, 2]");
+        }
+        if self.steps_per_epoch > MAX_STEPS_PER_EPOCH {
+            return fail("steps_per_epoch", self.steps_per_epoch.to_string(), &format!("must be ≤ {MAX_STEPS_PER_EPOCH}"));
+        }
+        if self.hidden.len() > MAX_LAYERS || self.hidden.iter().any(|&h| h > MAX_WIDTH) {
+            return fail(
+                "hidden",
+                format!("{:?}", self.hidden),
+                &format!("must have at most {MAX_LAYERS} layers of at most {MAX_WIDTH} units"),
+            );
+        }
+        if self.seed > i64::MAX as u64 {
+            return fail("seed", self.seed.to_string(), &format!("must be in 0..={} (TOML integers are signed 64-bit)", i64::MAX));
         }
         self.algo.validate().map_err(|e| apo_core::ConfigError { field: format!("algo.{}", e.field), ..e })
+    }
+
+    /// Checks that a run of this configuration on an environment with `observation_dim`
+    /// observations and `action` fits in this machine's memory ([`memory_estimate`]), before
+    /// anything is allocated or created; the error names the keys that size it.
+    pub fn check_memory(&self, observation_dim: usize, action: ActionKind) -> Result<(), apo_core::ConfigError> {
+        let need = memory_estimate(self, observation_dim, action);
+        let have = physical_memory().unwrap_or(MEMORY_WITHOUT_PROC);
+        if need > have as f64 {
+            return Err(apo_core::ConfigError {
+                field: "steps_per_epoch, num_envs, hidden".into(),
+                value: format!("{}, {}, {:?}", self.steps_per_epoch, self.num_envs, self.hidden),
+                rule: format!(
+                    "the run would need about {:.1} GiB of memory, more than this machine's {:.1} GiB; lower them",
+                    need / GIB,
+                    have as f64 / GIB
+                ),
+            });
+        }
+        Ok(())
     }
 
     /// The configuration as TOML text.
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).unwrap_or_else(|e| format!("# could not serialize the config: {e}\n"))
     }
+}
+
+/// Every config key with what it does and its range: `apo config` prints them beside the
+/// values (a test checks that every key of the config has an entry here).
+pub const KEY_DOCS: &[(&str, &str)] = &[
+    ("env", "environment name (see `apo list`)"),
+    ("seed", "seed of everything random in the run; 0..=9223372036854775807"),
+    ("epochs", "number of epochs (paper: 200 continuous, 500 Atari); ≥ 1"),
+    ("steps_per_epoch", "environment steps collected per epoch (paper: 30000); num_envs..=100000000"),
+    ("num_envs", "environments stepped together, the epoch's steps split between them; 1..=65536"),
+    ("normalize_obs", "normalize observations with running statistics (saved in checkpoints); true/false"),
+    ("backend", "backend of the updates: \"cpu\" (NdArray) or \"wgpu\""),
+    ("checkpoint_every", "write a checkpoint every this many epochs (and at the end and on interrupt); ≥ 1"),
+    ("keep_checkpoint_every", "also keep every this many epochs' checkpoint as checkpoints/epoch-<N> (`apo eval --checkpoint N`); 0 = off"),
+    ("hidden", "hidden layer sizes of the policy and value MLPs, tanh (paper: [64, 64]); 1..=64 layers of 1..=1048576"),
+    ("init_log_std", "initial state-independent log standard deviation of Gaussian policies; [-20, 2]"),
+    ("algo", "the algorithm's hyperparameters"),
+    ("algo.algo", "algorithm: apo, papo, trpo, ppo, a2c (set by --algo)"),
+    ("algo.gamma", "discount factor γ; [0, 1)"),
+    ("algo.lambda", "GAE λ; [0, 1]"),
+    ("algo.k", "probability factor k of the bound J − k·Var (APO, PAPO; paper: 7); ≥ 0"),
+    ("algo.omega1", "ω1, stands for ‖μ‖∞/(1−γ²) (APO, PAPO; paper grid 0.001..0.01); ≥ 0"),
+    ("algo.omega2", "ω2, stands for |H|_max when h_max = \"hyperparameter\" (APO, PAPO); ≥ 0"),
+    ("algo.h_max", "where |H|_max comes from: \"hyperparameter\" (ω2) or \"estimated\" (paper's ablation Q3)"),
+    ("algo.clip", "clip ε of the probability ratio (PPO, PAPO; paper: 0.2); (0, 1)"),
+    ("algo.trust_region", "the trust-region step (APO, TRPO)"),
+    ("algo.trust_region.max_kl", "KL radius δ (paper: 0.02); > 0"),
+    ("algo.trust_region.cg_iters", "conjugate-gradient iterations; ≥ 1"),
+    ("algo.trust_region.cg_damping", "damping added to the Fisher matrix, (F + damping·I)x = g; ≥ 0"),
+    ("algo.trust_region.cg_residual_tol", "CG stops when the squared residual falls below this; ≥ 0"),
+    ("algo.trust_region.backtrack_coeff", "backtracking coefficient ξ (paper: 0.8); (0, 1)"),
+    ("algo.trust_region.backtrack_iters", "backtracking tries (paper: 100); ≥ 1"),
+    ("algo.policy_update", "the policy's Adam update (PAPO, PPO, A2C)"),
+    ("algo.policy_update.lr", "Adam learning rate (paper: 3e-4); > 0"),
+    ("algo.policy_update.iters", "passes over the batch (paper: 80); ≥ 1"),
+    ("algo.policy_update.target_kl", "stop early once the approximate KL exceeds this (paper: 0.02); > 0, optional"),
+    ("algo.policy_update.minibatch_size", "minibatch size; optional (unset: full batch)"),
+    ("algo.value_update", "the value network's Adam update (all algorithms)"),
+    ("algo.value_update.lr", "Adam learning rate (paper: 1e-3); > 0"),
+    ("algo.value_update.iters", "passes over the batch (paper: 80); ≥ 1"),
+    ("algo.value_update.target_kl", "unused by the value update; optional"),
+    ("algo.value_update.minibatch_size", "minibatch size; optional (unset: full batch)"),
+];
+
+fn key_doc(key: &str) -> &'static str {
+    KEY_DOCS.iter().find(|(k, _)| *k == key).map_or("", |(_, d)| d)
+}
+
+impl RunConfig {
+    /// The configuration as TOML with every key's meaning and range as a comment above it
+    /// (optional keys that are unset appear commented out).
+    pub fn documented_toml(&self) -> String {
+        let mut out = String::new();
+        write_documented(&to_table(self), "", &mut out);
+        out
+    }
+}
+
+fn write_documented(table: &toml::Table, prefix: &str, out: &mut String) {
+    use std::fmt::Write as _;
+    let dotted = |k: &str| if prefix.is_empty() { k.to_string() } else { format!("{prefix}.{k}") };
+    for (k, v) in table.iter().filter(|(_, v)| !v.is_table()) {
+        let _ = writeln!(out, "# {}\n{k} = {v}", key_doc(&dotted(k)));
+    }
+    for optional in OPTIONAL_KEYS.iter().filter_map(|o| o.strip_prefix(&format!("{prefix}."))) {
+        if !optional.contains('.') && !table.contains_key(optional) {
+            let _ = writeln!(out, "# {}\n# {optional} =", key_doc(&dotted(optional)));
+        }
+    }
+    for (k, v) in table.iter() {
+        if let toml::Value::Table(t) = v {
+            let key = dotted(k);
+            let _ = writeln!(out, "\n# {}\n[{key}]", key_doc(&key));
+            write_documented(t, &key, out);
+        }
+    }
+}
+
+/// Upper bounds of the size keys (far above the paper's; they keep arithmetic in range).
+const MAX_STEPS_PER_EPOCH: usize = 100_000_000;
+const MAX_NUM_ENVS: usize = 65_536;
+const MAX_LAYERS: usize = 64;
+const MAX_WIDTH: usize = 1 << 20;
+const GIB: f64 = (1u64 << 30) as f64;
+/// Assumed memory where `/proc/meminfo` cannot be read.
+const MEMORY_WITHOUT_PROC: u64 = 64 << 30;
+
+/// An upper estimate, in bytes, of what a run of `config` allocates on an environment with
+/// `observation_dim` observations and `action`:
+///
+/// - per network parameter, 128 bytes: the Autodiff and host copies, Adam's two moments,
+///   gradients, the f64 flat vectors of the trust-region step and the checkpoint records;
+/// - per sample of the epoch, the stored transition three times (rollout buffer, batch, backend
+///   tensors; f32) and 48 bytes per hidden unit (activations, their gradients and the second
+///   backward pass of the Hessian-vector product);
+/// - per environment, 1 MiB (MuJoCo's model data and arena).
+pub fn memory_estimate(config: &RunConfig, observation_dim: usize, action: ActionKind) -> f64 {
+    let dist = match action {
+        ActionKind::Continuous { dim } => 2 * dim,
+        ActionKind::Discrete { n } => n,
+    } as f64;
+    let layers = |output: f64| {
+        let mut sizes = vec![observation_dim as f64];
+        sizes.extend(config.hidden.iter().map(|&h| h as f64));
+        sizes.push(output);
+        sizes.windows(2).map(|w| w[0] * w[1] + w[1]).sum::<f64>()
+    };
+    let params = layers(dist) + layers(1.0);
+    let samples = config.steps_per_epoch.div_ceil(config.num_envs.max(1)) as f64 * config.num_envs as f64;
+    let transition = (observation_dim as f64 + action.width() as f64 + dist + 5.0) * 4.0 * 3.0;
+    let activations = config.hidden.iter().sum::<usize>() as f64 * 48.0;
+    params * 128.0 + samples * (transition + activations) + config.num_envs as f64 * (1u64 << 20) as f64
+}
+
+/// This machine's physical memory in bytes (`MemTotal` of `/proc/meminfo`).
+fn physical_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 fn to_table<T: Serialize>(value: &T) -> toml::Table {
@@ -312,6 +473,48 @@ mod tests {
             let c = RunConfig::build(algo, "x", Some(&file), &[]).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
             assert_eq!(c, RunConfig::defaults(algo, "x"), "{}", file.display());
         }
+    }
+
+    #[test]
+    fn every_key_is_documented_and_the_documented_toml_parses_back() {
+        let mut c = RunConfig::defaults(Algorithm::Apo, "Hopper");
+        c.algo.policy_update.minibatch_size = Some(64);
+        let mut keys = Vec::new();
+        all_keys(&to_table(&c), "", &mut keys);
+        keys.extend(OPTIONAL_KEYS.iter().map(|k| k.to_string()));
+        for key in &keys {
+            assert!(!key_doc(key).is_empty(), "config key `{key}` has no entry in KEY_DOCS");
+        }
+        for (key, _) in KEY_DOCS {
+            assert!(keys.iter().any(|k| k == key), "KEY_DOCS documents `{key}`, which is not a config key");
+        }
+        let text = c.documented_toml();
+        assert!(text.contains("# discount factor γ; [0, 1)\ngamma = 0.99"), "{text}");
+        assert!(text.contains("# algo.policy_update.target_kl") || text.contains("target_kl = 0.02"), "{text}");
+        assert!(text.contains("# minibatch_size =\n"), "unset optional keys appear commented out: {text}");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("documented.toml");
+        std::fs::write(&path, &text).expect("write");
+        assert_eq!(RunConfig::load(&path).expect("the documented config loads"), c);
+    }
+
+    #[test]
+    fn sizes_are_bounded_and_memory_is_estimated_before_allocating() {
+        let err = RunConfig::build(Algorithm::Apo, "x", None, &["steps_per_epoch=1000000000000".into()]).unwrap_err();
+        assert!(err.to_string().starts_with("invalid `steps_per_epoch` = 1000000000000: must be ≤"), "{err}");
+        let err = RunConfig::build(Algorithm::Apo, "x", None, &["hidden=[1000000000]".into()]).unwrap_err();
+        assert!(err.to_string().contains("`hidden`"), "{err}");
+        let err = RunConfig::build(Algorithm::Apo, "x", None, &["init_log_std=1e30".into()]).unwrap_err();
+        assert!(err.to_string().contains("`init_log_std` = 1000000000000000000000000000000"), "{err}");
+        let action = ActionKind::Continuous { dim: 3 };
+        let paper = RunConfig::defaults(Algorithm::Apo, "Hopper");
+        // the paper's Hopper run: ~10 k parameters, 30 000 samples of 11 + 3 + 6 floats
+        let estimate = memory_estimate(&paper, 11, action);
+        assert!(estimate > 30_000.0 * 128.0 * 48.0 && estimate < 1e9, "{estimate}");
+        paper.check_memory(11, action).expect("the paper's Hopper run fits");
+        let wide = RunConfig { hidden: vec![1 << 20, 1 << 20], ..paper };
+        let err = wide.check_memory(11, action).unwrap_err();
+        assert!(err.to_string().contains("GiB of memory"), "{err}");
     }
 
     #[test]

@@ -10,9 +10,9 @@ use burn::backend::NdArray;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
-use crate::checkpoint;
+use crate::checkpoint::{self, Which};
 use crate::config::RunConfig;
-use crate::trainer::{action_kind, networks};
+use crate::trainer::{action_kind, networks, shapes};
 
 /// Returns of evaluation episodes.
 #[derive(Debug, Clone, PartialEq)]
@@ -23,9 +23,16 @@ pub struct EvalResult {
     pub lengths: Vec<usize>,
 }
 
-/// Runs `episodes` episodes of the policy saved in `run_dir` (on the CPU), seeded by `seed`;
-/// with `deterministic` the policy takes the mean (Gaussian) or most likely (categorical) action.
-pub fn evaluate(run_dir: &Path, episodes: usize, deterministic: bool, seed: u64) -> anyhow::Result<EvalResult> {
+/// Runs `episodes` episodes of the policy in checkpoint `which` of `run_dir` (on the CPU),
+/// seeded by `seed`; with `deterministic` the policy takes the mean (Gaussian) or most likely
+/// (categorical) action. Returns the results and the checkpoint's epoch.
+pub fn evaluate(
+    run_dir: &Path,
+    which: &Which,
+    episodes: usize,
+    deterministic: bool,
+    seed: u64,
+) -> anyhow::Result<(EvalResult, usize)> {
     let config = RunConfig::load(&run_dir.join("config.toml"))
         .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
     let mut env = apo_envs::make(&config.env)?;
@@ -34,7 +41,10 @@ pub fn evaluate(run_dir: &Path, episodes: usize, deterministic: bool, seed: u64)
     let (policy_cfg, value_cfg) = networks(&config, obs_dim, action);
     let device = Default::default();
     let mut learner = Learner::<NdArray, _>::new(policy_cfg, action, &value_cfg, config.algo.clone(), &device, 0)?;
-    let state = checkpoint::load(run_dir, &mut learner, &device)?;
+    let from = checkpoint::locate(run_dir, which)?.with_context(|| {
+        format!("{} has no checkpoint yet: the run has not completed an epoch", run_dir.display())
+    })?;
+    let state = checkpoint::load(&from, &mut learner, &shapes(&config, obs_dim, action), &device)?;
     let mut policy = HostPolicy::new(&learner.policy_on::<NdArray>(&device), action);
     let mut rng = StdRng::seed_from_u64(seed);
     let mut obs = vec![0.0f32; obs_dim];
@@ -61,5 +71,5 @@ pub fn evaluate(run_dir: &Path, episodes: usize, deterministic: bool, seed: u64)
         result.returns.push(ret);
         result.lengths.push(len);
     }
-    Ok(result)
+    Ok((result, state.epoch))
 }

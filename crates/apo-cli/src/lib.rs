@@ -8,7 +8,9 @@ pub mod config;
 pub mod eval;
 pub mod plot;
 pub mod progress;
+pub mod run_dir;
 pub mod summary;
+pub mod tensorboard;
 pub mod trainer;
 
 pub use config::{BackendKind, RunConfig};

@@ -1,17 +1,23 @@
 //! `apo`: train, evaluate, plot and benchmark APO, PAPO, TRPO, PPO and A2C.
 
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
 use anyhow::{bail, Context};
+use apo_cli::checkpoint::Which;
 use apo_cli::config::{BackendKind, RunConfig};
 use apo_cli::progress::ProgressRow;
+use apo_cli::run_dir::{self, NewRunDir, RunLock};
 use apo_cli::trainer::{self, Observer, TrainEnd};
 use apo_core::Algorithm;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+
+const CONFIG_HELP: &str = "Defaults are the paper's (configs/<algo>.toml spells them out). Every config key with its \
+meaning, default and range: `apo config --algo <ALGO>`; set any key with --set key=value or a --config file.";
 
 #[derive(Parser)]
 #[command(name = "apo", version, about = "Absolute Policy Optimization and baselines on Burn")]
@@ -22,22 +28,44 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Train a policy.
+    /// Train a policy (Ctrl-C or SIGTERM: checkpoint and stop; a second one: stop at once).
+    #[command(after_help = CONFIG_HELP)]
     Train(TrainArgs),
-    /// Evaluate a run's policy: prints the mean and the minimum return.
+    /// Evaluate a run's policy: prints the mean, std, min and max return.
     Eval {
         /// The run directory.
         #[arg(long)]
         run: PathBuf,
         /// Number of episodes.
-        #[arg(long, default_value_t = 10)]
-        episodes: usize,
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        episodes: u64,
         /// Act with the mean (Gaussian) or most likely (categorical) action.
         #[arg(long)]
         deterministic: bool,
         /// Seed of the evaluation episodes.
         #[arg(long, default_value_t = 12345)]
         seed: u64,
+        /// Which checkpoint: `latest`, or an epoch kept by keep_checkpoint_every.
+        #[arg(long, default_value = "latest")]
+        checkpoint: Which,
+    },
+    /// Print the effective config with every key's meaning and range (TOML; usable as --config).
+    Config {
+        /// Algorithm whose defaults to start from.
+        #[arg(long, value_parser = parse_algo, default_value = "apo")]
+        algo: Algorithm,
+        /// Environment name.
+        #[arg(long)]
+        env: Option<String>,
+        /// TOML config file layered over the defaults.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Override a config key, e.g. --set algo.k=5 (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        sets: Vec<String>,
+        /// Print this run directory's config instead.
+        #[arg(long, conflicts_with_all = ["env", "config", "sets"])]
+        run: Option<PathBuf>,
     },
     /// List environments and algorithms.
     List,
@@ -49,6 +77,9 @@ enum Command {
         /// Output image, .png or .svg.
         #[arg(long)]
         out: PathBuf,
+        /// Moving average over this many epochs (1: none).
+        #[arg(long, default_value_t = 1)]
+        smooth: usize,
     },
     /// The paper's metrics of runs: average mean and worst return over all and the last N epochs.
     Summary {
@@ -56,8 +87,11 @@ enum Command {
         #[arg(required = true)]
         runs: Vec<PathBuf>,
         /// N of "the last N epochs" (paper: 20 continuous, 100 Atari).
-        #[arg(long, default_value_t = 20)]
-        last: usize,
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
+        last: u64,
+        /// CSV instead of an aligned table.
+        #[arg(long)]
+        csv: bool,
     },
     /// Benchmarks.
     #[command(subcommand)]
@@ -72,17 +106,17 @@ enum BenchCommand {
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
         backend: BackendKind,
         /// Samples in the batch.
-        #[arg(long, default_value_t = 30_000)]
-        batch: usize,
+        #[arg(long, default_value_t = 30_000, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
+        batch: u64,
         /// Observation dimension.
-        #[arg(long, default_value_t = 60)]
-        obs: usize,
+        #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        obs: u64,
         /// Action dimension.
-        #[arg(long, default_value_t = 8)]
-        act: usize,
+        #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+        act: u64,
         /// Timed repeats (after one warm-up); the median is printed.
-        #[arg(long, default_value_t = 3)]
-        repeats: usize,
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]
+        repeats: u64,
     },
     /// Environment steps per second of one environment with random actions.
     Env {
@@ -90,23 +124,23 @@ enum BenchCommand {
         #[arg(long)]
         env: String,
         /// Steps to time.
-        #[arg(long, default_value_t = 100_000)]
-        steps: usize,
+        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
+        steps: u64,
     },
     /// Microseconds per rollout policy call (host MLP, (64, 64)).
     Policy {
         /// Observation dimension.
-        #[arg(long, default_value_t = 11)]
-        obs: usize,
+        #[arg(long, default_value_t = 11, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        obs: u64,
         /// Action dimension.
-        #[arg(long, default_value_t = 3)]
-        act: usize,
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+        act: u64,
         /// Observations per call (environments stepped together).
-        #[arg(long, default_value_t = 1)]
-        batch: usize,
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        batch: u64,
         /// Calls to time.
-        #[arg(long, default_value_t = 100_000)]
-        calls: usize,
+        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
+        calls: u64,
     },
 }
 
@@ -118,31 +152,37 @@ struct TrainArgs {
     /// Environment name (see `apo list`).
     #[arg(long)]
     env: Option<String>,
-    /// Backend of the updates.
+    /// Backend of the updates [config: backend; default cpu].
     #[arg(long, value_enum)]
     backend: Option<BackendKind>,
-    /// TOML config file (keys as in a run's config.toml; defaults fill the rest).
+    /// TOML config file (keys as in a run's config.toml or `apo config`; defaults fill the rest).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Seed.
-    #[arg(long)]
+    /// Seed [config: seed; default 0; 0..=9223372036854775807].
+    #[arg(long, value_parser = clap::value_parser!(u64).range(0..=i64::MAX as u64))]
     seed: Option<u64>,
-    /// Number of epochs.
+    /// Number of epochs [config: epochs; default 200]; with --resume, the run's new target.
     #[arg(long)]
     epochs: Option<usize>,
-    /// Environment steps per epoch.
+    /// Environment steps per epoch [config: steps_per_epoch; default 30000].
     #[arg(long)]
     steps_per_epoch: Option<usize>,
-    /// Run directory (default runs/<env>-<algo>-s<seed>).
+    /// Environments stepped together [config: num_envs; default 1].
+    #[arg(long)]
+    num_envs: Option<usize>,
+    /// Write a checkpoint every N epochs [config: checkpoint_every; default 1].
+    #[arg(long, value_name = "N")]
+    checkpoint_every: Option<usize>,
+    /// Run directory [default: runs/<env>-<algo>-s<seed>].
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Override a config key, e.g. --set algo.k=5 (repeatable).
+    /// Override a config key, e.g. --set algo.k=5 (repeatable; see `apo config`).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
     /// Continue the run in this directory from its last checkpoint (--epochs may extend it).
     #[arg(long, value_name = "DIR", conflicts_with_all = ["algo", "env", "config", "out", "force"])]
     resume: Option<PathBuf>,
-    /// Replace an existing run directory.
+    /// Replace an existing run directory (only one apo made; other files in it are kept).
     #[arg(long)]
     force: bool,
     /// No progress bar.
@@ -164,60 +204,88 @@ fn parse_algo(s: &str) -> Result<Algorithm, String> {
     })
 }
 
+/// Exit status of a run stopped by SIGINT (128 + 2) or SIGTERM (128 + 15).
+fn interrupted_status(signal: usize) -> u8 {
+    128u8.saturating_add(u8::try_from(signal).unwrap_or(0))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Train(args) => train(args),
-        Command::List => {
-            list();
-            Ok(())
+        Command::List => list().map(|()| ExitCode::SUCCESS),
+        Command::Eval { run, episodes, deterministic, seed, checkpoint } => {
+            eval(&run, &checkpoint, episodes as usize, deterministic, seed).map(|()| ExitCode::SUCCESS)
         }
-        Command::Eval { run, episodes, deterministic, seed } => eval(&run, episodes, deterministic, seed),
-        Command::Plot { runs, out } => apo_cli::plot::plot(&runs, &out).map(|()| println!("wrote {}", out.display())),
-        Command::Bench(command) => bench(command),
-        Command::Summary { runs, last } => summary(&runs, last),
+        Command::Config { algo, env, config, sets, run } => print_config(algo, env, config, &sets, run).map(|()| ExitCode::SUCCESS),
+        Command::Plot { runs, out, smooth } => apo_cli::plot::plot(&runs, &out, &apo_cli::plot::PlotOptions { smooth })
+            .map(|()| println!("wrote {}", out.display()))
+            .map(|()| ExitCode::SUCCESS),
+        Command::Bench(command) => bench(command).map(|()| ExitCode::SUCCESS),
+        Command::Summary { runs, last, csv } => summary(&runs, last as usize, csv).map(|()| ExitCode::SUCCESS),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    result.unwrap_or_else(|e| {
+        eprintln!("error: {e:#}");
+        ExitCode::FAILURE
+    })
 }
 
-fn eval(run: &Path, episodes: usize, deterministic: bool, seed: u64) -> anyhow::Result<()> {
-    if episodes == 0 {
-        bail!("--episodes must be at least 1");
-    }
-    let result = apo_cli::eval::evaluate(run, episodes, deterministic, seed)?;
+fn eval(run: &Path, which: &Which, episodes: usize, deterministic: bool, seed: u64) -> anyhow::Result<()> {
+    let (result, epoch) = apo_cli::eval::evaluate(run, which, episodes, deterministic, seed)?;
     let stats = apo_core::EpisodeStats::from_episodes(&result.returns, &result.lengths, 0.0)
         .context("no episode was run")?;
-    println!("episodes={} mean_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}",
-        stats.count, stats.ret_mean, stats.ret_min, stats.ret_max, stats.len_mean);
+    println!(
+        "checkpoint_epoch={epoch} episodes={} mean_return={:.3} std_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}",
+        stats.count, stats.ret_mean, stats.ret_std, stats.ret_min, stats.ret_max, stats.len_mean
+    );
     Ok(())
 }
 
-fn summary(runs: &[PathBuf], last: usize) -> anyhow::Result<()> {
-    let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
-    println!("run,epochs,env_steps,mean_all,mean_last{last},worst_all,worst_last{last},steps_per_s");
-    for run in runs {
-        let s = apo_cli::summary::summarize(run, last)?;
-        println!(
-            "{},{},{},{},{},{},{},{:.0}",
-            run.display(), s.epochs, s.env_steps, fmt(s.mean_all), fmt(s.mean_last), fmt(s.worst_all), fmt(s.worst_last), s.steps_per_s
-        );
+fn summary(runs: &[PathBuf], last: usize, csv: bool) -> anyhow::Result<()> {
+    let rows = runs
+        .iter()
+        .map(|run| Ok((run.display().to_string(), apo_cli::summary::summarize(run, last)?)))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if csv {
+        print!("{}", apo_cli::summary::csv(&rows, last)?);
+    } else {
+        print!("{}", apo_cli::summary::table(&rows, last));
     }
+    Ok(())
+}
+
+fn print_config(
+    algo: Algorithm,
+    env: Option<String>,
+    file: Option<PathBuf>,
+    sets: &[String],
+    run: Option<PathBuf>,
+) -> anyhow::Result<()> {
+    let config = match run {
+        Some(run) => RunConfig::load(&run.join(run_dir::CONFIG)).with_context(|| format!("{} is not a run directory", run.display()))?,
+        None => {
+            if let Some(env) = &env {
+                apo_envs::registry::spec(env)?;
+            }
+            RunConfig::build(algo, env.as_deref().unwrap_or(""), file.as_deref(), sets)?
+        }
+    };
+    print!("{}", config.documented_toml());
     Ok(())
 }
 
 fn bench(command: BenchCommand) -> anyhow::Result<()> {
     match command {
         BenchCommand::Update { backend, batch, obs, act, repeats } => {
-            let repeats = repeats.max(1);
+            let (batch, obs, act, repeats) = (batch as usize, obs as usize, act as usize, repeats as usize);
+            let sized = RunConfig { steps_per_epoch: batch, ..RunConfig::defaults(Algorithm::Apo, "") };
+            sized.check_memory(obs, apo_core::ActionKind::Continuous { dim: act }).context("apo bench update --batch/--obs/--act")?;
             let t = match backend {
                 BackendKind::Cpu => apo_cli::bench::update::<burn::backend::NdArray>(&Default::default(), batch, obs, act, repeats),
-                BackendKind::Wgpu => apo_cli::bench::update::<burn::backend::Wgpu>(&Default::default(), batch, obs, act, repeats),
+                BackendKind::Wgpu => {
+                    quiet_wgpu();
+                    apo_cli::bench::update::<burn::backend::Wgpu>(&Default::default(), batch, obs, act, repeats)
+                }
             };
             println!("backend={backend} batch={batch} obs={obs} act={act} params={} repeats={repeats}", t.params);
             println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries.0);
@@ -227,12 +295,13 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
         }
         BenchCommand::Env { env, steps } => {
             let mut e = apo_envs::make(&env)?;
-            let rate = apo_envs::mujoco::steps_per_second(e.as_mut(), steps, 0);
+            let rate = apo_envs::mujoco::steps_per_second(e.as_mut(), steps as usize, 0);
             println!("env={env} steps={steps}");
             println!("steps_per_sec={rate:.1}");
         }
         BenchCommand::Policy { obs, act, batch, calls } => {
-            let us = apo_cli::bench::policy_call_us(obs, apo_core::ActionKind::Continuous { dim: act }, batch.max(1), calls.max(1));
+            let (obs, act, batch, calls) = (obs as usize, act as usize, batch as usize, calls as usize);
+            let us = apo_cli::bench::policy_call_us(obs, apo_core::ActionKind::Continuous { dim: act }, batch, calls);
             println!("obs={obs} act={act} batch={batch}");
             println!("policy_call_us={us:.3}");
         }
@@ -240,7 +309,7 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn list() {
+fn list() -> anyhow::Result<()> {
     println!("{:<28} {:>8}  {:<14} {:>9}", "environment", "obs dim", "actions", "max steps");
     for spec in apo_envs::list() {
         let actions = match &spec.action_space {
@@ -251,22 +320,59 @@ fn list() {
     }
     println!();
     println!("algorithms: {}", Algorithm::ALL.iter().map(|a| a.name()).collect::<Vec<_>>().join(", "));
+    Ok(())
 }
 
-struct Bar(Option<ProgressBar>);
+/// The progress bar: environment steps of the whole run, with the epoch, speed, returns and ETA.
+struct Bar {
+    bar: Option<ProgressBar>,
+    epochs: usize,
+    epoch: usize,
+    started: bool,
+    last: String,
+}
+
+impl Bar {
+    fn new(quiet: bool, config: &RunConfig) -> Self {
+        let total = (config.steps_per_epoch.div_ceil(config.num_envs) * config.num_envs * config.epochs) as u64;
+        let bar = (!quiet).then(|| {
+            let bar = ProgressBar::new(total);
+            bar.set_style(
+                ProgressStyle::with_template("{bar:30} {human_pos}/{human_len} steps [{elapsed_precise}, ETA {eta_precise}] {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            bar
+        });
+        Self { bar, epochs: config.epochs, epoch: 0, started: false, last: String::new() }
+    }
+}
 
 impl Observer for Bar {
+    fn steps(&mut self, env_steps: u64) {
+        if let Some(bar) = &self.bar {
+            bar.set_position(env_steps);
+            if !self.started {
+                // a resumed run starts part-way: measure the rate from here
+                bar.reset_eta();
+                self.started = true;
+            }
+            bar.set_message(format!("epoch {}/{}{}", self.epoch + 1, self.epochs, self.last));
+        }
+    }
+
     fn epoch(&mut self, row: &ProgressRow, epochs: usize) {
-        if let Some(bar) = &self.0 {
-            bar.set_length(epochs as u64);
-            bar.set_position(row.epoch as u64);
-            let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
-            bar.set_message(format!(
-                "{:.0} steps/s  return mean {}  min {}",
-                row.steps_per_s,
-                fmt(row.ep_ret_mean),
-                fmt(row.ep_ret_min)
-            ));
+        self.epoch = row.epoch;
+        self.epochs = epochs;
+        let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+        self.last = format!(
+            " · {:.0} steps/s · return mean {} min {}",
+            row.steps_per_s,
+            fmt(row.ep_ret_mean),
+            fmt(row.ep_ret_min)
+        );
+        if let Some(bar) = &self.bar {
+            bar.set_position(row.env_steps);
+            bar.set_message(format!("epoch {}/{}{}", row.epoch, epochs, self.last));
         }
     }
 }
@@ -275,37 +381,98 @@ fn init_logging(run_dir: &Path) -> anyhow::Result<()> {
     use tracing_subscriber::layer::SubscriberExt;
     use tracing_subscriber::util::SubscriberInitExt;
     use tracing_subscriber::{fmt, EnvFilter, Layer};
+    let path = run_dir.join(run_dir::LOG);
     let file = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
-        .open(run_dir.join("train.log"))
-        .with_context(|| format!("cannot open {}", run_dir.join("train.log").display()))?;
+        .open(&path)
+        .with_context(|| format!("cannot open {}", path.display()))?;
     let stderr_filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("warn"));
+    let ansi = std::io::stderr().is_terminal();
     tracing_subscriber::registry()
         .with(fmt::layer().with_writer(std::sync::Mutex::new(file)).with_ansi(false).with_filter(EnvFilter::new("info")))
-        .with(fmt::layer().with_writer(std::io::stderr).with_filter(stderr_filter))
+        .with(fmt::layer().with_writer(std::io::stderr).with_ansi(ansi).with_filter(stderr_filter))
         .try_init()
         .ok();
     Ok(())
 }
 
-fn train(args: TrainArgs) -> anyhow::Result<()> {
-    let (config, run_dir, resume) = match &args.resume {
+/// Silences the Wayland client's "XDG_RUNTIME_DIR is invalid or not set" line, which
+/// `libwayland-client` prints when the Vulkan driver probes for a display and the variable is
+/// unset: apo never draws to a window, so it points the probe at a private, empty directory
+/// of its own (`<tmp>/apo-runtime-<uid>`, mode 0700, reused by later runs).
+fn quiet_wgpu() {
+    #[cfg(unix)]
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+        let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else { return };
+        let dir = std::env::temp_dir().join(format!("apo-runtime-{uid}"));
+        let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+        let private = std::fs::symlink_metadata(&dir)
+            .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0);
+        if private {
+            // SAFETY: called on the main thread before any other thread is started.
+            std::env::set_var("XDG_RUNTIME_DIR", &dir);
+        }
+    }
+}
+
+/// Stop flags raised by SIGINT and SIGTERM: the first raises `stop` (the run checkpoints and
+/// ends), a second exits at once with 128 + the signal's number.
+struct Signals {
+    stop: Arc<AtomicBool>,
+    which: Arc<AtomicUsize>,
+}
+
+impl Signals {
+    fn install() -> anyhow::Result<Self> {
+        use signal_hook::consts::{SIGINT, SIGTERM};
+        use signal_hook::flag;
+        let (stop, which) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicUsize::new(0)));
+        for signal in [SIGINT, SIGTERM] {
+            // registered first, so it sees `stop` as the previous signal left it
+            flag::register_conditional_shutdown(signal, 128 + signal, Arc::clone(&stop))
+                .and_then(|_| flag::register_usize(signal, Arc::clone(&which), signal as usize))
+                .and_then(|_| flag::register(signal, Arc::clone(&stop)))
+                .context("installing the signal handlers")?;
+        }
+        Ok(Self { stop, which })
+    }
+}
+
+fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
+    let mut fresh = None;
+    let (config, run_dir, resume, _lock) = match &args.resume {
         Some(dir) => {
-            let mut config = RunConfig::load(&dir.join("config.toml"))
-                .with_context(|| format!("{} is not a run directory", dir.display()))?;
-            if let Some(epochs) = args.epochs {
-                config.epochs = epochs;
-            }
-            if args.seed.is_some() || args.steps_per_epoch.is_some() || args.backend.is_some() || !args.sets.is_empty() {
+            if args.seed.is_some()
+                || args.steps_per_epoch.is_some()
+                || args.backend.is_some()
+                || args.num_envs.is_some()
+                || args.checkpoint_every.is_some()
+                || !args.sets.is_empty()
+            {
                 bail!("--resume continues a run with its own config.toml; only --epochs may change");
             }
-            (config, dir.clone(), true)
+            let config_path = dir.join(run_dir::CONFIG);
+            let mut config = RunConfig::load(&config_path).with_context(|| format!("{} is not a run directory", dir.display()))?;
+            let lock = RunLock::acquire(dir)?;
+            let spec = apo_envs::registry::spec(&config.env)?;
+            if let Some(epochs) = args.epochs {
+                config.epochs = epochs;
+                config.validate()?;
+            }
+            config.check_memory(spec.observation_dim, trainer::action_kind(&spec.action_space))?;
+            if args.epochs.is_some() {
+                // the new target is part of the run: a later plain --resume continues to it
+                apo_cli::atomic::write(&config_path, config.to_toml().as_bytes())
+                    .with_context(|| format!("cannot write {}", config_path.display()))?;
+            }
+            (config, dir.clone(), true, lock)
         }
         None => {
             let algo = args.algo.context("--algo is required (apo, papo, trpo, ppo, a2c)")?;
             let env = args.env.clone().context("--env is required (see `apo list`)")?;
-            apo_envs::registry::spec(&env)?;
+            let spec = apo_envs::registry::spec(&env)?;
             let mut sets = args.sets.clone();
             let flag = |k: &str, v: Option<String>| v.map(|v| format!("{k}={v}"));
             sets.extend(
@@ -314,65 +481,73 @@ fn train(args: TrainArgs) -> anyhow::Result<()> {
                     flag("seed", args.seed.map(|v| v.to_string())),
                     flag("epochs", args.epochs.map(|v| v.to_string())),
                     flag("steps_per_epoch", args.steps_per_epoch.map(|v| v.to_string())),
+                    flag("num_envs", args.num_envs.map(|v| v.to_string())),
+                    flag("checkpoint_every", args.checkpoint_every.map(|v| v.to_string())),
                     flag("backend", args.backend.map(|b| format!("\"{b}\""))),
                 ]
                 .into_iter()
                 .flatten(),
             );
             let config = RunConfig::build(algo, &env, args.config.as_deref(), &sets)?;
+            config.check_memory(spec.observation_dim, trainer::action_kind(&spec.action_space))?;
             let dir = args
                 .out
                 .clone()
                 .unwrap_or_else(|| PathBuf::from(format!("runs/{}-{}-s{}", config.env, algo, config.seed)));
-            prepare_run_dir(&dir, args.force)?;
-            apo_cli::atomic::write(&dir.join("config.toml"), config.to_toml().as_bytes())?;
-            (config, dir, false)
+            let mut prepared = NewRunDir::prepare(&dir, args.force)?;
+            let lock = prepared.take_lock().context("the run directory's lock")?;
+            let config_path = dir.join(run_dir::CONFIG);
+            if let Err(e) = apo_cli::atomic::write(&config_path, config.to_toml().as_bytes()) {
+                prepared.discard();
+                return Err(e).with_context(|| format!("cannot write {}", config_path.display()));
+            }
+            fresh = Some(prepared);
+            (config, dir, false, lock)
         }
     };
-    apo_envs::registry::spec(&config.env)?;
-    init_logging(&run_dir)?;
-
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the Ctrl-C handler")?;
+    let result = run_training(&config, &run_dir, resume, args.quiet);
+    if result.is_err() && !run_dir.join(run_dir::PROGRESS).exists() {
+        // a new run that failed before its first epoch leaves nothing behind
+        if let Some(prepared) = fresh {
+            prepared.discard();
+        }
     }
-    let bar = (!args.quiet).then(|| {
-        let bar = ProgressBar::new(config.epochs as u64);
-        bar.set_style(
-            ProgressStyle::with_template("{bar:30} epoch {pos}/{len} [{elapsed_precise}] {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        bar
-    });
-    let mut observer = Bar(bar.clone());
-    let end = match config.backend {
-        BackendKind::Cpu => trainer::train::<burn::backend::NdArray>(&config, &run_dir, &Default::default(), resume, &stop, &mut observer),
-        BackendKind::Wgpu => trainer::train::<burn::backend::Wgpu>(&config, &run_dir, &Default::default(), resume, &stop, &mut observer),
-    }?;
-    if let Some(bar) = bar {
-        bar.finish();
-    }
-    match end {
-        TrainEnd::Finished => println!("run finished: {}", run_dir.display()),
-        TrainEnd::Interrupted => println!(
-            "interrupted; checkpoint written. Continue with: apo train --resume {}",
-            run_dir.display()
-        ),
-    }
-    Ok(())
+    result
 }
 
-fn prepare_run_dir(dir: &Path, force: bool) -> anyhow::Result<()> {
-    if dir.exists() && std::fs::read_dir(dir)?.next().is_some() {
-        if !force {
-            bail!(
-                "run directory {} already exists; pass --force to replace it, or --resume {} to continue it",
-                dir.display(),
-                dir.display()
-            );
+fn run_training(config: &RunConfig, run_dir: &Path, resume: bool, quiet: bool) -> anyhow::Result<ExitCode> {
+    init_logging(run_dir)?;
+    let signals = Signals::install()?;
+    let mut bar = Bar::new(quiet, config);
+    let end = match config.backend {
+        BackendKind::Cpu => {
+            trainer::train::<burn::backend::NdArray>(config, run_dir, &Default::default(), resume, &signals.stop, &mut bar)
         }
-        std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+        BackendKind::Wgpu => {
+            quiet_wgpu();
+            trainer::train::<burn::backend::Wgpu>(config, run_dir, &Default::default(), resume, &signals.stop, &mut bar)
+        }
+    };
+    if let Some(bar) = &bar.bar {
+        bar.abandon();
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))
+    match end? {
+        TrainEnd::Finished => {
+            println!("run finished: {}", run_dir.display());
+            Ok(ExitCode::SUCCESS)
+        }
+        TrainEnd::Interrupted { epoch } => {
+            let signal = signals.which.load(Ordering::SeqCst);
+            let name = match signal {
+                s if s == signal_hook::consts::SIGTERM as usize => "SIGTERM",
+                _ => "SIGINT",
+            };
+            println!(
+                "interrupted by {name} after epoch {epoch} of {}; checkpoint written. Continue with: apo train --resume {}",
+                config.epochs,
+                run_dir.display()
+            );
+            Ok(ExitCode::from(interrupted_status(signal)))
+        }
+    }
 }

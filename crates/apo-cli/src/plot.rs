@@ -1,13 +1,42 @@
 //! Learning curves of one or more runs: mean return with its min–max band, and the
 //! worst (minimum) return, against environment steps. PNG or SVG by the file extension.
+//!
+//! The title names the runs' environments and algorithms (from each run's `config.toml`);
+//! the legend has its own panel beside the chart, so it never covers a curve. Returns that
+//! are not finite (`inf`, `NaN`) are left out and counted (a note on stderr and in the
+//! subtitle); returns spanning a range wider than an `f64` can hold are an error naming the
+//! runs that hold the extremes.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use anyhow::{bail, Context};
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{register_font, FontStyle};
 
+use crate::config::RunConfig;
 use crate::progress::{self, ProgressRow};
+
+/// Options of [`plot`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PlotOptions {
+    /// Moving-average window over epochs (`--smooth N`), applied alike to the mean, worst and
+    /// best returns: each point is the mean of its epoch and the `smooth − 1` epochs before it
+    /// (of those that exist, for the first epochs). 1 draws the values as logged; 0 is an error.
+    pub smooth: usize,
+}
+
+impl Default for PlotOptions {
+    /// No smoothing.
+    fn default() -> Self {
+        Self { smooth: 1 }
+    }
+}
 
 /// Where the font for the plot's text is looked for (Debian's `fonts-dejavu-core`).
 const FONT_PATHS: &[&str] = &[
@@ -15,95 +44,511 @@ const FONT_PATHS: &[&str] = &[
     "/usr/share/fonts/dejavu/DejaVuSans.ttf",
 ];
 
+/// Image size in pixels.
+const SIZE: (u32, u32) = (1200, 660);
+/// Height of the title and subtitle band.
+const HEADER_HEIGHT: u32 = 84;
+/// Most labelled ticks per axis (the label formats rely on it, see [`ReturnTicks`]).
+const X_LABELS: usize = 10;
+/// See [`X_LABELS`].
+const Y_LABELS: usize = 10;
+/// Font size of tick labels and legend entries.
+const LABEL_FONT: u32 = 16;
+/// Height of a legend row.
+const LEGEND_ROW: i32 = 24;
+/// Length of a legend entry's line sample.
+const SWATCH: i32 = 30;
+/// Width bounds of the legend panel.
+const LEGEND_WIDTH: Range<u32> = 190..360;
+/// The runs' colors, in order (Tableau 10: distinct, and all readable on white).
+const PALETTE: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+/// Color of secondary text and of the legend's line-style samples.
+const GREY: RGBColor = RGBColor(80, 80, 80);
+
+/// Registers the font once per process.
 fn load_font() -> anyhow::Result<()> {
-    let path = FONT_PATHS.iter().map(PathBuf::from).find(|p| p.exists()).context(
-        "no font for the plot's text: install Debian's fonts-dejavu-core (apt-get install fonts-dejavu-core)",
-    )?;
-    let bytes = std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
-    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-    register_font("sans-serif", FontStyle::Normal, bytes).map_err(|_| anyhow::anyhow!("{} is not a usable font", path.display()))
+    static LOADED: OnceLock<Result<(), String>> = OnceLock::new();
+    let register = || -> anyhow::Result<()> {
+        let path = FONT_PATHS.iter().map(PathBuf::from).find(|p| p.exists()).context(
+            "no font for the plot's text: install Debian's fonts-dejavu-core (apt-get install fonts-dejavu-core)",
+        )?;
+        let bytes = std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+        register_font("sans-serif", FontStyle::Normal, bytes)
+            .map_err(|_| anyhow::anyhow!("{} is not a usable font", path.display()))
+    };
+    LOADED.get_or_init(|| register().map_err(|e| format!("{e:#}"))).clone().map_err(anyhow::Error::msg)
 }
 
-/// One run's curve.
-struct Curve {
+/// The image formats by file extension.
+enum ImageFormat {
+    Png,
+    Svg,
+}
+
+impl ImageFormat {
+    fn of(out: &Path) -> anyhow::Result<Self> {
+        match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("png") => Ok(Self::Png),
+            Some("svg") => Ok(Self::Svg),
+            _ => bail!("cannot tell the image format of {}: use a .png or .svg file name", out.display()),
+        }
+    }
+}
+
+/// Points `(environment steps, return)`.
+type Series = Vec<(f64, f64)>;
+
+/// One run, ready to draw: finite returns only, smoothed.
+struct Run {
+    /// The run directory.
+    dir: PathBuf,
+    /// Its name in the legend (the directory's name).
     label: String,
-    rows: Vec<ProgressRow>,
+    /// Its environment.
+    env: String,
+    /// Its algorithm.
+    algo: &'static str,
+    /// Mean return per epoch.
+    mean: Series,
+    /// Worst return per epoch.
+    min: Series,
+    /// Best return per epoch.
+    max: Series,
+    /// Returns left out because they were not finite.
+    skipped: usize,
+    /// Environment steps after its last epoch.
+    steps: f64,
 }
 
-/// Plots the runs in `runs` into `out` (`.png` or `.svg`).
-pub fn plot(runs: &[PathBuf], out: &Path) -> anyhow::Result<()> {
-    if runs.is_empty() {
-        bail!("no run directory given");
-    }
-    let curves = runs
-        .iter()
-        .map(|dir| {
-            let rows = progress::read(&dir.join("progress.csv"))?;
-            let label = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
-            Ok(Curve { label, rows })
+impl Run {
+    /// Reads the run in `dir` (`config.toml`, `progress.csv`) and smooths its curves.
+    fn load(dir: &Path, smooth: usize) -> anyhow::Result<Self> {
+        let context = || format!("cannot plot the run in {}", dir.display());
+        let config = RunConfig::load(&dir.join("config.toml")).with_context(context)?;
+        let rows = progress::read(&dir.join("progress.csv")).with_context(context)?;
+        let (mean, skipped_mean) = column(&rows, |r| r.ep_ret_mean, smooth);
+        let (min, skipped_min) = column(&rows, |r| r.ep_ret_min, smooth);
+        let (max, skipped_max) = column(&rows, |r| r.ep_ret_max, smooth);
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            label: dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned()),
+            env: config.env,
+            algo: config.algo.algo.name(),
+            mean,
+            min,
+            max,
+            skipped: skipped_mean + skipped_min + skipped_max,
+            steps: rows.iter().map(|r| r.env_steps as f64).fold(0.0, f64::max),
         })
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    load_font()?;
-    match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-        Some("png") => draw(BitMapBackend::new(out, (1000, 640)).into_drawing_area(), &curves),
-        Some("svg") => draw(SVGBackend::new(out, (1000, 640)).into_drawing_area(), &curves),
-        _ => bail!("cannot tell the image format of {}: use a .png or .svg file name", out.display()),
+    }
+
+    /// Every drawn return.
+    fn returns(&self) -> impl Iterator<Item = f64> + '_ {
+        self.mean.iter().chain(&self.min).chain(&self.max).map(|&(_, y)| y)
     }
 }
 
-fn draw<DB: DrawingBackend>(area: DrawingArea<DB, plotters::coord::Shift>, curves: &[Curve]) -> anyhow::Result<()>
+/// The finite values of one column against environment steps, smoothed over `smooth` epochs,
+/// and how many values were left out for not being finite.
+fn column(rows: &[ProgressRow], value: fn(&ProgressRow) -> Option<f64>, smooth: usize) -> (Series, usize) {
+    let logged: Series = rows.iter().filter_map(|r| value(r).map(|v| (r.env_steps as f64, v))).collect();
+    let (finite, skipped): (Series, Series) = logged.into_iter().partition(|&(_, y)| y.is_finite());
+    let ys: Vec<f64> = finite.iter().map(|&(_, y)| y).collect();
+    let smoothed = finite.iter().map(|&(x, _)| x).zip(moving_average(&ys, smooth)).collect();
+    (smoothed, skipped.len())
+}
+
+/// Trailing moving average: element `i` is the mean of `values[i + 1 − window ..= i]`, or of
+/// `values[..= i]` for the first `window − 1` elements; a window of 1 (or 0) changes nothing.
+/// Each term is divided before summing, so finite values never overflow to infinity.
+fn moving_average(values: &[f64], window: usize) -> Vec<f64> {
+    let window = window.max(1);
+    (0..values.len())
+        .map(|i| {
+            let terms = &values[(i + 1).saturating_sub(window)..=i];
+            let n = terms.len() as f64;
+            terms.iter().map(|v| v / n).sum()
+        })
+        .collect()
+}
+
+/// The distinct items, in order of first appearance.
+fn distinct<'a>(items: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut seen = Vec::new();
+    for item in items {
+        if !seen.contains(&item) {
+            seen.push(item);
+        }
+    }
+    seen
+}
+
+/// The return axis: the returns' range with a 5 % margin. Flat curves (a spread under a
+/// millionth of their size, e.g. CartPole solved at 500) get ±5 % of their value, at least ±1,
+/// so that the ticks stay readable.
+///
+/// An axis wider than the largest `f64` is an error naming the runs with the extremes
+/// (plotters' tick placement loops forever on an infinite range).
+fn return_axis(runs: &[Run]) -> anyhow::Result<Range<f64>> {
+    let extreme = |better: fn(f64, f64) -> bool| {
+        runs.iter()
+            .flat_map(|run| run.returns().map(move |y| (y, run)))
+            .reduce(|a, b| if better(b.0, a.0) { b } else { a })
+    };
+    let (Some((lo, lo_run)), Some((hi, hi_run))) = (extreme(|a, b| a < b), extreme(|a, b| a > b)) else {
+        bail!("the runs have no completed episode with a finite return to plot yet");
+    };
+    let span = hi - lo;
+    let (start, end) = if span <= 1e-6 * lo.abs().max(hi.abs()).max(1.0) {
+        let mid = lo / 2.0 + hi / 2.0;
+        let half = (mid.abs() * 0.05).max(1.0);
+        (mid - half, mid + half)
+    } else {
+        (lo - span * 0.05, hi + span * 0.05)
+    };
+    if !(end - start).is_finite() {
+        bail!(
+            "cannot plot returns from {lo:e} (in {}) to {hi:e} (in {}): the range is too wide for a \
+             floating-point axis (has a run diverged?)",
+            lo_run.dir.display(),
+            hi_run.dir.display()
+        );
+    }
+    Ok(start..end)
+}
+
+/// Environment steps as tick labels: 0, 500, 50k, 1.2M, 3G.
+fn format_steps(steps: f64) -> String {
+    let (scaled, suffix) = match steps.abs() {
+        a if a >= 1e9 => (steps / 1e9, "G"),
+        a if a >= 1e6 => (steps / 1e6, "M"),
+        a if a >= 1e3 => (steps / 1e3, "k"),
+        _ => (steps, ""),
+    };
+    let digits = format!("{scaled:.2}");
+    let digits = digits.trim_end_matches('0').trim_end_matches('.');
+    format!("{}{suffix}", if digits == "-0" { "0" } else { digits })
+}
+
+/// Tick labels of the return axis: the fewest decimals that show plotters' ticks exactly
+/// (no `0.30000000000000004`), in scientific notation from a million on.
+struct ReturnTicks {
+    /// Decimals (of the mantissa, in scientific notation).
+    decimals: usize,
+    /// Whether to use scientific notation.
+    scientific: bool,
+}
+
+impl ReturnTicks {
+    fn new(axis: &Range<f64>) -> Self {
+        let ticks = RangedCoordf64::from(axis.clone()).key_points(Y_LABELS);
+        let spacing = ticks.windows(2).map(|w| w[1] - w[0]).fold(axis.end - axis.start, f64::min);
+        let scientific = axis.start.abs().max(axis.end.abs()) >= 1e6;
+        let exact = |decimals: usize| {
+            ticks.iter().all(|&t| {
+                Self { decimals, scientific }.format(t).parse::<f64>().is_ok_and(|shown| (shown - t).abs() <= spacing * 1e-3)
+            })
+        };
+        Self { decimals: (0..=15).find(|&d| exact(d)).unwrap_or(15), scientific }
+    }
+
+    fn format(&self, value: f64) -> String {
+        let text = if self.scientific {
+            // each mantissa as short as it can be: 5e6, 1e7, 1.5e7
+            let text = format!("{value:.*e}", self.decimals);
+            match text.split_once('e') {
+                Some((mantissa, exponent)) if mantissa.contains('.') => {
+                    format!("{}e{exponent}", mantissa.trim_end_matches('0').trim_end_matches('.'))
+                }
+                _ => text,
+            }
+        } else {
+            format!("{value:.*}", self.decimals)
+        };
+        match text.parse::<f64>() {
+            // 0, not "0e0", "-0" or "-0.00"
+            Ok(0.0) if self.scientific => "0".to_string(),
+            Ok(0.0) => text.trim_start_matches('-').to_string(),
+            _ => text,
+        }
+    }
+}
+
+/// What the image shows.
+struct Figure<'a> {
+    runs: &'a [Run],
+    title: String,
+    subtitle: String,
+    x: Range<f64>,
+    y: Range<f64>,
+}
+
+impl<'a> Figure<'a> {
+    fn new(runs: &'a [Run], options: &PlotOptions) -> anyhow::Result<Self> {
+        let envs = distinct(runs.iter().map(|r| r.env.as_str()));
+        let algos = distinct(runs.iter().map(|r| r.algo));
+        let mut subtitle = "Episode return: mean (solid), min–max band, worst (dashed)".to_string();
+        if options.smooth > 1 {
+            subtitle += &format!(" · moving average over {} epochs", options.smooth);
+        }
+        let skipped: usize = runs.iter().map(|r| r.skipped).sum();
+        if skipped > 0 {
+            subtitle += &format!(" · {skipped} non-finite value{} left out", if skipped == 1 { "" } else { "s" });
+        }
+        Ok(Self {
+            runs,
+            title: format!("{} — {}", envs.join(", "), algos.join(", ")),
+            subtitle,
+            x: 0.0..runs.iter().map(|r| r.steps).fold(1.0, f64::max),
+            y: return_axis(runs)?,
+        })
+    }
+
+    /// Draws the figure: title band on top, chart on the left, legend panel on the right.
+    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let (width, _) = root.dim_in_pixel();
+        let (header, body) = root.split_vertically(HEADER_HEIGHT);
+        let centered = Pos::new(HPos::Center, VPos::Top);
+        header.draw(&Text::new(self.title.as_str(), (width as i32 / 2, 14), font(28).pos(centered)))?;
+        header.draw(&Text::new(self.subtitle.as_str(), (width as i32 / 2, 54), font(17).color(&GREY).pos(centered)))?;
+
+        let labels: Vec<&str> = self.runs.iter().map(|r| r.label.as_str()).collect();
+        let widest = labels
+            .iter()
+            .chain(&LEGEND_KEY.map(|(text, _)| text))
+            .map(|text| body.estimate_text_size(text, &font(LABEL_FONT)).map(|(w, _)| w))
+            .collect::<Result<Vec<_>, _>>()?
+            .into_iter()
+            .max()
+            .unwrap_or(0);
+        let legend_width = (widest + LEGEND_TEXT_X as u32 + 16).clamp(LEGEND_WIDTH.start, LEGEND_WIDTH.end);
+        let (chart_area, legend_area) = body.split_horizontally(width - legend_width);
+        self.draw_chart(&chart_area)?;
+        draw_legend(&legend_area, &labels)?;
+        root.present()?;
+        Ok(())
+    }
+
+    fn draw_chart<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let ticks = ReturnTicks::new(&self.y);
+        let tick_width = [self.y.start, self.y.end]
+            .into_iter()
+            .map(|y| area.estimate_text_size(&ticks.format(y), &font(LABEL_FONT)).map(|(w, _)| w))
+            .collect::<Result<Vec<_>, _>>()?
+            .into_iter()
+            .max()
+            .unwrap_or(0);
+        let mut chart = ChartBuilder::on(area)
+            .margin_left(12)
+            .margin_right(28)
+            .margin_top(10)
+            .margin_bottom(12)
+            .x_label_area_size(56)
+            .y_label_area_size(tick_width + 48)
+            .build_cartesian_2d(self.x.clone(), self.y.clone())?;
+        chart
+            .configure_mesh()
+            .x_labels(X_LABELS)
+            .y_labels(Y_LABELS)
+            .x_label_formatter(&|x| format_steps(*x))
+            .y_label_formatter(&|y| ticks.format(*y))
+            .label_style(font(LABEL_FONT))
+            .axis_desc_style(font(18))
+            .x_desc("environment steps")
+            .y_desc("episode return")
+            .max_light_lines(0)
+            .bold_line_style(BLACK.mix(0.1))
+            .draw()?;
+        // bands first, so that no run's band covers another run's lines; fainter the more
+        // runs overlap
+        let opacity = (0.3 / self.runs.len() as f64).clamp(0.04, 0.15);
+        for (i, run) in self.runs.iter().enumerate() {
+            let band: Series = run.max.iter().chain(run.min.iter().rev()).copied().collect();
+            if band.len() > 2 {
+                chart.draw_series(std::iter::once(Polygon::new(band, color(i).mix(opacity).filled())))?;
+            }
+        }
+        for (i, run) in self.runs.iter().enumerate() {
+            let color = color(i);
+            chart.draw_series(LineSeries::new(run.mean.iter().copied(), color.stroke_width(2)))?;
+            chart.draw_series(DashedLineSeries::new(run.min.iter().copied(), 8, 5, color.stroke_width(2)))?;
+            if run.mean.len() == 1 {
+                // a single epoch makes no line: mark it
+                chart.draw_series(run.mean.iter().map(|&p| Circle::new(p, 4, color.filled())))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The legend's line-style key: text and sample.
+const LEGEND_KEY: [(&str, Sample); 3] =
+    [("mean return", Sample::Solid), ("min–max band", Sample::Band), ("worst return", Sample::Dashed)];
+/// Where the legend's texts start.
+const LEGEND_TEXT_X: i32 = 12 + SWATCH + 10;
+
+/// A legend entry's sample.
+#[derive(Clone, Copy)]
+enum Sample {
+    Solid,
+    Band,
+    Dashed,
+}
+
+/// The legend panel: one entry per run (as many as fit), then the line-style key.
+fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, labels: &[&str]) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing failed: {e:?}");
-    area.fill(&WHITE).map_err(err)?;
-    let points = curves.iter().flat_map(|c| c.rows.iter());
-    let x_max = points.clone().map(|r| r.env_steps as f64).fold(1.0, f64::max);
-    let ys: Vec<f64> = points.flat_map(|r| [r.ep_ret_min, r.ep_ret_max, r.ep_ret_mean]).flatten().collect();
-    if ys.is_empty() {
-        bail!("the runs have no completed episode to plot yet");
+    let (width, height) = area.dim_in_pixel();
+    let text_width = width.saturating_sub(LEGEND_TEXT_X as u32 + 8);
+    let text = font(LABEL_FONT).pos(Pos::new(HPos::Left, VPos::Center));
+    let heading = font(LABEL_FONT + 1).color(&GREY).pos(Pos::new(HPos::Left, VPos::Center));
+    let entry = |y: i32, label: &str, sample: Sample, color: RGBColor| -> anyhow::Result<()> {
+        let line = [(12, y), (12 + SWATCH, y)];
+        match sample {
+            Sample::Solid => area.draw(&PathElement::new(line, color.stroke_width(3)))?,
+            Sample::Band => area.draw(&Rectangle::new([(12, y - 7), (12 + SWATCH, y + 7)], color.mix(0.2).filled()))?,
+            Sample::Dashed => area.draw(&DashedPathElement::new(line, 8, 5, color.stroke_width(2)))?,
+        }
+        area.draw(&Text::new(fit(area, label, text_width)?, (LEGEND_TEXT_X, y), text.clone()))?;
+        Ok(())
+    };
+
+    // rows for the two headings, the key, a gap and a possible "… more" line
+    let room = (height as i32 / LEGEND_ROW - 2 - LEGEND_KEY.len() as i32 - 2).max(1) as usize;
+    let shown = if labels.len() > room { room - 1 } else { labels.len() };
+    let mut y = 22;
+    area.draw(&Text::new("Runs", (12, y), heading.clone()))?;
+    for (i, label) in labels.iter().take(shown).enumerate() {
+        y += LEGEND_ROW;
+        entry(y, label, Sample::Solid, color(i))?;
     }
-    let (y_min, y_max) = ys.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &y| (lo.min(y), hi.max(y)));
-    let pad = ((y_max - y_min) * 0.05).max(1e-6);
-    let mut chart = ChartBuilder::on(&area)
-        .caption("Episode return: mean (solid), min–max band, worst (dashed)", ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..x_max, (y_min - pad)..(y_max + pad))
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc("environment steps")
-        .y_desc("return")
-        .draw()
-        .map_err(err)?;
-    for (i, curve) in curves.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let rows: Vec<&ProgressRow> = curve.rows.iter().filter(|r| r.ep_ret_mean.is_some()).collect();
-        let at = |r: &ProgressRow, v: Option<f64>| (r.env_steps as f64, v.unwrap_or(f64::NAN));
-        let band: Vec<(f64, f64)> = rows
-            .iter()
-            .map(|r| at(r, r.ep_ret_max))
-            .chain(rows.iter().rev().map(|r| at(r, r.ep_ret_min)))
-            .collect();
-        chart.draw_series(std::iter::once(Polygon::new(band, color.mix(0.15).filled()))).map_err(err)?;
-        chart
-            .draw_series(LineSeries::new(rows.iter().map(|r| at(r, r.ep_ret_mean)), color.stroke_width(2)))
-            .map_err(err)?
-            .label(curve.label.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        chart
-            .draw_series(DashedLineSeries::new(rows.iter().map(|r| at(r, r.ep_ret_min)), 6, 4, color.stroke_width(1)))
-            .map_err(err)?;
+    if shown < labels.len() {
+        y += LEGEND_ROW;
+        area.draw(&Text::new(format!("… and {} more", labels.len() - shown), (LEGEND_TEXT_X, y), text.clone()))?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::LowerRight)
-        .draw()
-        .map_err(err)?;
-    area.present().map_err(err)?;
+    y += 2 * LEGEND_ROW;
+    area.draw(&Text::new("Lines", (12, y), heading))?;
+    for (label, sample) in LEGEND_KEY {
+        y += LEGEND_ROW;
+        entry(y, label, sample, GREY)?;
+    }
     Ok(())
+}
+
+/// `text`, shortened with an ellipsis to fit `width` pixels in the legend's font.
+fn fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, text: &str, width: u32) -> anyhow::Result<String>
+where
+    DB::ErrorType: 'static,
+{
+    let mut chars: Vec<char> = text.chars().collect();
+    let mut candidate = text.to_string();
+    while !chars.is_empty() && area.estimate_text_size(&candidate, &font(LABEL_FONT))?.0 > width {
+        chars.pop();
+        candidate = chars.iter().collect::<String>() + "…";
+    }
+    Ok(candidate)
+}
+
+/// The plot's font at `size` pixels.
+fn font(size: u32) -> TextStyle<'static> {
+    TextStyle::from(("sans-serif", size).into_font())
+}
+
+/// The color of the `i`-th run.
+fn color(i: usize) -> RGBColor {
+    PALETTE[i % PALETTE.len()]
+}
+
+/// Plots the runs in `runs` into `out` (`.png` or `.svg`).
+pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Result<()> {
+    if options.smooth == 0 {
+        bail!("--smooth must be at least 1 (1 = no smoothing), got 0");
+    }
+    if runs.is_empty() {
+        bail!("no run directory given");
+    }
+    let format = ImageFormat::of(out)?;
+    let runs = runs.iter().map(|dir| Run::load(dir, options.smooth)).collect::<anyhow::Result<Vec<_>>>()?;
+    for run in runs.iter().filter(|r| r.skipped > 0) {
+        eprintln!(
+            "note: {}: left out {} non-finite return value{} (inf or NaN)",
+            run.dir.display(),
+            run.skipped,
+            if run.skipped == 1 { "" } else { "s" }
+        );
+    }
+    let figure = Figure::new(&runs, options)?;
+    load_font()?;
+    match format {
+        ImageFormat::Png => figure.draw(BitMapBackend::new(out, SIZE).into_drawing_area()),
+        ImageFormat::Svg => figure.draw(SVGBackend::new(out, SIZE).into_drawing_area()),
+    }
+    .with_context(|| format!("cannot draw {}", out.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn moving_average_is_trailing_and_averages_what_exists_at_the_start() {
+        let smoothed = moving_average(&[1.0, 2.0, 3.0, 4.0, 5.0], 3);
+        for (got, want) in smoothed.iter().zip([1.0, 1.5, 2.0, 3.0, 4.0]) {
+            assert!((got - want).abs() < 1e-12, "{smoothed:?}");
+        }
+        assert_eq!(moving_average(&[1.0, 7.0], 1), [1.0, 7.0]);
+        assert_eq!(moving_average(&[2.0, 4.0], 10), [2.0, 3.0]);
+        assert!(moving_average(&[], 3).is_empty());
+        assert_eq!(moving_average(&[1e308, 1e308], 2), [1e308, 1e308], "no overflow");
+    }
+
+    #[test]
+    fn step_ticks_use_k_and_m_suffixes() {
+        for (steps, label) in [
+            (0.0, "0"),
+            (500.0, "500"),
+            (1500.0, "1.5k"),
+            (50_000.0, "50k"),
+            (1_200_000.000_000_2, "1.2M"),
+            (1_250_000.0, "1.25M"),
+            (3e9, "3G"),
+        ] {
+            assert_eq!(format_steps(steps), label);
+        }
+    }
+
+    #[test]
+    fn return_ticks_have_the_precision_of_their_spacing() {
+        let labels = |axis: Range<f64>| {
+            let ticks = ReturnTicks::new(&axis);
+            RangedCoordf64::from(axis).key_points(Y_LABELS).into_iter().map(|t| ticks.format(t)).collect::<Vec<_>>()
+        };
+        assert_eq!(labels(-20.0..520.0), ["0", "100", "200", "300", "400", "500"]);
+        assert_eq!(labels(0.0..1.2), ["0.0", "0.2", "0.4", "0.6", "0.8", "1.0", "1.2"]);
+        assert_eq!(labels(-0.25..0.25), ["-0.2", "-0.1", "0.0", "0.1", "0.2"]);
+        assert_eq!(labels(0.0..0.4)[..3], ["0.00", "0.05", "0.10"]);
+        assert_eq!(labels(0.0..3e7)[..4], ["0", "5e6", "1e7", "1.5e7"]);
+        assert_eq!(ReturnTicks { decimals: 2, scientific: false }.format(-0.001), "0.00");
+    }
 }

@@ -1,5 +1,5 @@
 //! The paper's metrics over runs: the average of the epochs' mean return and of their
-//! worst return, over all epochs and over the last N epochs.
+//! worst return, over all epochs and over the last N epochs; printed as a table or as CSV.
 
 use std::path::Path;
 
@@ -42,4 +42,151 @@ pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
         worst_last: average_over_epochs(&worst, Some(last)),
         steps_per_s: if time > 0.0 { env_steps as f64 / time } else { 0.0 },
     })
+}
+
+/// A run's values in the column order of [`table`] and [`csv`], formatted (returns with two
+/// decimals, steps/s as a whole number); `None` where the run has no episode to average.
+fn cells(s: &RunSummary) -> [Option<String>; 7] {
+    let returns = |v: Option<f64>| v.map(|v| format!("{v:.2}"));
+    [
+        Some(s.epochs.to_string()),
+        Some(s.env_steps.to_string()),
+        returns(s.mean_all),
+        returns(s.mean_last),
+        returns(s.worst_all),
+        returns(s.worst_last),
+        Some(format!("{:.0}", s.steps_per_s)),
+    ]
+}
+
+/// An aligned table of the runs' summaries (`last`: the N of "last N"), one line per run
+/// under a header: the run names left-aligned, the numbers right-aligned, "-" for a missing
+/// value. Every line ends with a newline.
+pub fn table(rows: &[(String, RunSummary)], last: usize) -> String {
+    let header = [
+        "run".to_string(),
+        "epochs".to_string(),
+        "env steps".to_string(),
+        "mean(all)".to_string(),
+        format!("mean(last {last})"),
+        "worst(all)".to_string(),
+        format!("worst(last {last})"),
+        "steps/s".to_string(),
+    ];
+    let lines: Vec<[String; 8]> = std::iter::once(header)
+        .chain(rows.iter().map(|(run, s)| {
+            let [a, b, c, d, e, f, g] = cells(s).map(|c| c.unwrap_or_else(|| "-".to_string()));
+            [run.clone(), a, b, c, d, e, f, g]
+        }))
+        .collect();
+    let mut widths = [0; 8];
+    for line in &lines {
+        for (width, cell) in widths.iter_mut().zip(line) {
+            *width = (*width).max(cell.chars().count());
+        }
+    }
+    let mut out = String::new();
+    for line in &lines {
+        let (run, numbers) = (&line[0], &line[1..]);
+        out.push_str(&format!("{run:<w$}", w = widths[0]));
+        for (cell, width) in numbers.iter().zip(&widths[1..]) {
+            out.push_str(&format!("  {cell:>width$}"));
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// The runs' summaries as CSV (`last`: the N of "last N") with the header
+/// `run,epochs,env_steps,mean_all,mean_last{N},worst_all,worst_last{N},steps_per_s`; fields
+/// are quoted where needed and a missing value is an empty field.
+pub fn csv(rows: &[(String, RunSummary)], last: usize) -> anyhow::Result<String> {
+    let mut writer = ::csv::Writer::from_writer(Vec::new());
+    writer.write_record([
+        "run".to_string(),
+        "epochs".to_string(),
+        "env_steps".to_string(),
+        "mean_all".to_string(),
+        format!("mean_last{last}"),
+        "worst_all".to_string(),
+        format!("worst_last{last}"),
+        "steps_per_s".to_string(),
+    ])?;
+    for (run, s) in rows {
+        let values = cells(s).map(Option::unwrap_or_default);
+        writer.write_record(std::iter::once(run).chain(&values))?;
+    }
+    let bytes = writer.into_inner().map_err(|e| anyhow::anyhow!("csv: {e}"))?;
+    Ok(String::from_utf8(bytes)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows() -> Vec<(String, RunSummary)> {
+        vec![
+            (
+                "runs/Hopper-apo-s0".to_string(),
+                RunSummary {
+                    epochs: 75,
+                    env_steps: 300_000,
+                    mean_all: Some(812.456),
+                    mean_last: Some(1503.1),
+                    worst_all: Some(-12.0),
+                    worst_last: Some(420.0),
+                    steps_per_s: 1234.4,
+                },
+            ),
+            (
+                "runs/a,b \"quoted\"".to_string(),
+                RunSummary {
+                    epochs: 2,
+                    env_steps: 40,
+                    mean_all: None,
+                    mean_last: None,
+                    worst_all: None,
+                    worst_last: None,
+                    steps_per_s: 0.0,
+                },
+            ),
+        ]
+    }
+
+    #[test]
+    fn table_is_aligned_with_a_header() {
+        let text = table(&rows(), 20);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 3);
+        let width = lines[0].chars().count();
+        assert!(lines.iter().all(|l| l.chars().count() == width), "{text}");
+        let header: Vec<&str> = lines[0].split("  ").filter(|c| !c.is_empty()).map(str::trim).collect();
+        assert_eq!(
+            header,
+            ["run", "epochs", "env steps", "mean(all)", "mean(last 20)", "worst(all)", "worst(last 20)", "steps/s"]
+        );
+        assert!(lines[1].starts_with("runs/Hopper-apo-s0 "));
+        assert!(lines[1].ends_with("  1234"), "{text}");
+        // Right-aligned: each value ends where its header ends.
+        let end_of = |line: &str, cell: &str| line.find(cell).map(|i| i + cell.len());
+        assert_eq!(end_of(lines[1], "812.46"), end_of(lines[0], "mean(all)"));
+        assert_eq!(end_of(lines[1], "-12.00"), end_of(lines[0], "worst(all)"));
+        assert_eq!(lines[2].matches(" -").count(), 4, "{text}");
+        assert!(lines[2].ends_with(" 0"));
+    }
+
+    #[test]
+    fn csv_round_trips_and_quotes() {
+        let text = csv(&rows(), 10).unwrap();
+        assert!(text.starts_with("run,epochs,env_steps,mean_all,mean_last10,worst_all,worst_last10,steps_per_s\n"));
+        assert!(text.contains("\"runs/a,b \"\"quoted\"\"\","), "{text}");
+        let mut reader = ::csv::Reader::from_reader(text.as_bytes());
+        let records: Vec<::csv::StringRecord> = reader.records().collect::<Result<_, _>>().unwrap();
+        assert_eq!(records.len(), 2);
+        assert_eq!(
+            records[0].iter().collect::<Vec<_>>(),
+            ["runs/Hopper-apo-s0", "75", "300000", "812.46", "1503.10", "-12.00", "420.00", "1234"]
+        );
+        assert_eq!(records[1].iter().collect::<Vec<_>>(), ["runs/a,b \"quoted\"", "2", "40", "", "", "", "", "0"]);
+    }
 }

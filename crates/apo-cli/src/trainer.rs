@@ -23,18 +23,21 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use anyhow::Context;
+use anyhow::{bail, Context};
 use apo_core::inference::{ActBuffers, HostPolicy, HostValue};
-use apo_core::{ActionKind, BufferLayout, EpisodeStats, Learner, MlpPolicyConfig, RolloutBuffer, ValueConfig};
+use apo_core::{
+    ActionKind, BufferLayout, EpisodeStats, Learner, MlpPolicyConfig, RolloutBuffer, UpdateReport, ValueConfig,
+};
 use apo_envs::{RunningMeanStd, Space, VecEnv, VecStep};
 use burn::backend::NdArray;
 use burn::tensor::backend::Backend;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
-use crate::checkpoint::{self, TrainState};
+use crate::checkpoint::{self, Shapes, TrainState, Which};
 use crate::config::RunConfig;
 use crate::progress::{self, ProgressRow};
+use crate::tensorboard::{row_scalars, EventWriter};
 
 /// A seed for stream `stream` of epoch `epoch` of a run seeded `seed` (SplitMix64 mixing).
 pub fn derive_seed(seed: u64, epoch: u64, stream: u64) -> u64 {
@@ -93,6 +96,9 @@ pub struct Rollout {
     /// Environment steps taken.
     pub steps: u64,
 }
+
+/// How often (in vector steps) [`Collector::collect`] reports its progress.
+pub const PROGRESS_EVERY: usize = 256;
 
 /// Collects the epoch's transitions; `None` when `stop` was raised mid-way.
 pub struct Collector {
@@ -164,8 +170,15 @@ impl Collector {
         }
     }
 
-    /// Runs one epoch's rollout with `actor`, seeded by `seed`.
-    pub fn collect(&mut self, actor: &mut Actor, seed: u64, stop: &AtomicBool) -> Option<Rollout> {
+    /// Runs one epoch's rollout with `actor`, seeded by `seed`; `progress` is told the
+    /// epoch's environment steps so far every [`PROGRESS_EVERY`] vector steps.
+    pub fn collect(
+        &mut self,
+        actor: &mut Actor,
+        seed: u64,
+        stop: &AtomicBool,
+        progress: &mut dyn FnMut(u64),
+    ) -> Option<Rollout> {
         let n = self.envs.num_envs();
         let obs_dim = self.envs.obs_dim();
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 1));
@@ -173,9 +186,12 @@ impl Collector {
         let (mut ep_ret, mut ep_len) = (vec![0.0f64; n], vec![0usize; n]);
         let mut rollout = Rollout { batch: Default::default(), returns: vec![], lengths: vec![], unstable: 0, steps: 0 };
         let mut row = vec![0.0f32; obs_dim];
-        for _ in 0..self.steps_per_env {
+        for t in 0..self.steps_per_env {
             if stop.load(Ordering::Relaxed) {
                 return None;
+            }
+            if t % PROGRESS_EVERY == 0 {
+                progress(rollout.steps);
             }
             if let Some(rms) = &mut self.normalizer {
                 rms.update(&self.obs, n);
@@ -242,16 +258,31 @@ pub enum TrainEnd {
     /// All epochs ran.
     Finished,
     /// `stop` was raised; a checkpoint of the last completed epoch was written.
-    Interrupted,
+    Interrupted {
+        /// Epochs completed.
+        epoch: usize,
+    },
 }
 
 /// Observes training progress (the CLI's progress bar).
 pub trait Observer {
+    /// Called during each epoch's rollout with the run's environment steps so far.
+    fn steps(&mut self, _env_steps: u64) {}
     /// Called after each epoch with its row.
     fn epoch(&mut self, row: &ProgressRow, epochs: usize);
 }
 
+/// The shapes of `config`'s networks on an environment with `observation_dim` and `action`.
+pub fn shapes(config: &RunConfig, observation_dim: usize, action: ActionKind) -> Shapes {
+    Shapes { observation_dim, action, hidden: config.hidden.clone(), normalize_obs: config.normalize_obs }
+}
+
 /// Trains (or, with `resume`, continues) the run in `run_dir` on backend `B`.
+///
+/// Resuming checks that the checkpoint and `progress.csv` agree (rows of every completed epoch,
+/// with matching step counts) and refuses with the reason when they don't. After every update
+/// the losses, the KL and the parameters are checked: a non-finite value stops the run with
+/// an error, before anything of that epoch is written, keeping the last good checkpoint.
 pub fn train<B: Backend>(
     config: &RunConfig,
     run_dir: &Path,
@@ -263,38 +294,73 @@ pub fn train<B: Backend>(
     let start = Instant::now();
     let mut collector = Collector::new(config, None)?;
     let (obs_dim, action) = (collector.observation_dim(), collector.action());
+    let shapes = shapes(config, obs_dim, action);
     let (policy_cfg, value_cfg) = networks(config, obs_dim, action);
     let mut learner = Learner::<B, _>::new(policy_cfg, action, &value_cfg, config.algo.clone(), device, config.seed)?;
-    let progress_path = run_dir.join("progress.csv");
-    let mut state = TrainState {
-        format: 1,
-        epoch: 0,
-        env_steps: 0,
-        elapsed_s: 0.0,
-        normalizer: config.normalize_obs.then(|| RunningMeanStd::new(obs_dim)),
-    };
+    let progress_path = run_dir.join(crate::run_dir::PROGRESS);
+    let mut state = TrainState::new(config.normalize_obs.then(|| RunningMeanStd::new(obs_dim)));
     let mut rows = Vec::new();
     if resume {
-        state = checkpoint::load(run_dir, &mut learner, device)?;
-        if progress_path.exists() {
-            rows = progress::read(&progress_path)?;
+        let on_disk = if progress_path.exists() { progress::read(&progress_path)? } else { Vec::new() };
+        match checkpoint::locate(run_dir, &Which::Latest)? {
+            Some(from) => {
+                state = checkpoint::load(&from, &mut learner, &shapes, device)?;
+                check_rows(&on_disk, &state, &progress_path, &from)?;
+                rows = on_disk;
+                if rows.len() > state.epoch {
+                    tracing::info!(
+                        rows = rows.len(),
+                        checkpoint_epoch = state.epoch,
+                        "progress.csv has epochs after the checkpoint; they are run again (same seed, same rows)"
+                    );
+                    rows.truncate(state.epoch);
+                }
+                tracing::info!(epoch = state.epoch, checkpoint = %from.display(), "resumed from checkpoint");
+            }
+            None if on_disk.is_empty() => {
+                tracing::info!("no checkpoint and no completed epoch: the run starts from epoch 0");
+            }
+            None => bail!(
+                "{} has {} epoch rows but there is no checkpoint ({} is missing): the run cannot continue where it \
+                 stopped. Its files are kept; restore the checkpoint, or start a new run with another --out",
+                progress_path.display(),
+                on_disk.len(),
+                checkpoint::dir(run_dir).join("latest").join("state.json").display()
+            ),
         }
-        rows.truncate(state.epoch);
-        tracing::info!(epoch = state.epoch, "resumed from checkpoint");
+    }
+    if state.epoch > config.epochs {
+        bail!("the run has {} epochs done, more than epochs = {}; pass a larger --epochs", state.epoch, config.epochs);
     }
     collector.set_normalizer(state.normalizer.clone());
+    let mut events = EventWriter::create(run_dir)?;
     let elapsed_before = state.elapsed_s;
+    let mut checkpoint_epoch = state.epoch;
     let mut actor = Actor::sync(&learner, &value_cfg, action);
     for epoch in state.epoch..config.epochs {
         let epoch_start = Instant::now();
         let seed = derive_seed(config.seed, epoch as u64, 0);
-        let Some(rollout) = collector.collect(&mut actor, seed, stop) else {
-            checkpoint::save(run_dir, &learner, &state).context("writing the checkpoint after an interrupt")?;
+        let steps_before = state.env_steps;
+        let Some(rollout) = collector.collect(&mut actor, seed, stop, &mut |steps| observer.steps(steps_before + steps)) else {
+            checkpoint::save(run_dir, &learner, &state, &shapes, false).context("writing the checkpoint after an interrupt")?;
             tracing::warn!(epoch = state.epoch, "interrupted; checkpoint written");
-            return Ok(TrainEnd::Interrupted);
+            return Ok(TrainEnd::Interrupted { epoch: state.epoch });
         };
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
         let report = learner.update(&rollout.batch, &mut rng);
+        if let Some(what) = non_finite(&report, &learner) {
+            let kept = if checkpoint_epoch > 0 {
+                format!("The last good checkpoint (epoch {checkpoint_epoch}) is kept in {}.", checkpoint::dir(run_dir).display())
+            } else {
+                "No epoch had completed, so nothing was saved.".to_string()
+            };
+            bail!(
+                "epoch {}: the update produced {what}; the run stopped without saving that epoch. {kept} Lower the \
+                 learning rates (algo.policy_update.lr, algo.value_update.lr) or algo.trust_region.max_kl, or check \
+                 the environment's rewards",
+                epoch + 1
+            );
+        }
         actor = Actor::sync(&learner, &value_cfg, action);
 
         state.epoch = epoch + 1;
@@ -312,30 +378,94 @@ pub fn train<B: Backend>(
             steps_per_s,
             state.elapsed_s,
         );
+        let shown = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| format!("{v:.3}"));
         tracing::info!(
             epoch = row.epoch,
             env_steps = row.env_steps,
-            ret_mean = ?row.ep_ret_mean,
-            ret_min = ?row.ep_ret_min,
+            episodes = row.episodes,
+            ret_mean = %shown(row.ep_ret_mean),
+            ret_min = %shown(row.ep_ret_min),
             kl = row.kl,
-            line_search = ?row.line_search,
+            line_search = %row.line_search.as_deref().unwrap_or("-"),
             "epoch done"
         );
         if rollout.unstable > 0 {
             tracing::warn!(epoch = row.epoch, episodes = rollout.unstable, "episodes ended by simulator instability");
         }
         observer.epoch(&row, config.epochs);
-        rows.push(row);
+        rows.push(row.clone());
         progress::write(&progress_path, &rows)?;
-        if state.epoch.is_multiple_of(config.checkpoint_every) || state.epoch == config.epochs {
-            checkpoint::save(run_dir, &learner, &state)?;
+        events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
+        let interrupted = stop.load(Ordering::Relaxed);
+        let keep = config.keep_checkpoint_every > 0 && state.epoch.is_multiple_of(config.keep_checkpoint_every);
+        if interrupted || keep || state.epoch.is_multiple_of(config.checkpoint_every) || state.epoch == config.epochs {
+            checkpoint::save(run_dir, &learner, &state, &shapes, keep)?;
+            checkpoint_epoch = state.epoch;
         }
-        if stop.load(Ordering::Relaxed) {
-            if !state.epoch.is_multiple_of(config.checkpoint_every) {
-                checkpoint::save(run_dir, &learner, &state)?;
-            }
-            return Ok(TrainEnd::Interrupted);
+        if interrupted {
+            return Ok(TrainEnd::Interrupted { epoch: state.epoch });
         }
     }
     Ok(TrainEnd::Finished)
+}
+
+/// Seconds since the Unix epoch.
+fn unix_time() -> f64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// Checks that `rows` (from `progress.csv`) hold every epoch the checkpoint `state` completed.
+fn check_rows(rows: &[ProgressRow], state: &TrainState, progress_path: &Path, from: &Path) -> anyhow::Result<()> {
+    if rows.len() < state.epoch {
+        bail!(
+            "{} has {} epoch rows but the checkpoint in {} is at epoch {}: the rows of epochs {}..={} are missing \
+             (was the file deleted, emptied or replaced?). Resuming would lose them; restore the file, or start a new \
+             run with another --out",
+            progress_path.display(),
+            rows.len(),
+            from.display(),
+            state.epoch,
+            rows.len() + 1,
+            state.epoch
+        );
+    }
+    for (i, row) in rows.iter().take(state.epoch).enumerate() {
+        if row.epoch != i + 1 {
+            bail!("{}: row {} is epoch {}, expected epoch {}", progress_path.display(), i + 1, row.epoch, i + 1);
+        }
+    }
+    if let Some(last) = state.epoch.checked_sub(1).map(|i| &rows[i]) {
+        if last.env_steps != state.env_steps {
+            bail!(
+                "{} says {} environment steps after epoch {}, the checkpoint in {} says {}: they are from different runs",
+                progress_path.display(),
+                last.env_steps,
+                state.epoch,
+                from.display(),
+                state.env_steps
+            );
+        }
+    }
+    Ok(())
+}
+
+/// What is not finite after an update, if anything: a loss, the KL, the entropy, or a parameter.
+fn non_finite<B: Backend>(report: &UpdateReport, learner: &Learner<B, MlpPolicyConfig>) -> Option<String> {
+    let scalars = [
+        ("loss_pi", report.loss_pi),
+        ("loss_v", report.loss_v),
+        ("kl", report.kl),
+        ("entropy", report.entropy),
+        ("mean_surr", report.mean_surr),
+    ];
+    if let Some((name, value)) = scalars.iter().find(|(_, v)| !v.is_finite()) {
+        return Some(format!("a non-finite {name} = {value}"));
+    }
+    if learner.policy_params().iter().any(|p| !p.is_finite()) {
+        return Some("non-finite policy parameters".to_string());
+    }
+    if learner.value_params().iter().any(|p| !p.is_finite()) {
+        return Some("non-finite value-network parameters".to_string());
+    }
+    None
 }

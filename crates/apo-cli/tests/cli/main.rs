@@ -6,28 +6,32 @@ use std::time::{Duration, Instant};
 
 use apo_cli::progress::{self, ProgressRow};
 
-fn apo(args: &[&str]) -> Output {
+mod hardening;
+mod plot;
+mod reporting;
+
+pub fn apo(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_apo")).args(args).output().expect("the apo binary runs")
 }
 
-fn ok(args: &[&str]) -> String {
+pub fn ok(args: &[&str]) -> String {
     let out = apo(args);
     assert!(out.status.success(), "apo {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-fn fails(args: &[&str]) -> String {
+pub fn fails(args: &[&str]) -> String {
     let out = apo(args);
     assert!(!out.status.success(), "apo {args:?} should fail");
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-fn path(p: &Path) -> &str {
+pub fn path(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")
 }
 
 /// A small run: 3 epochs of 600 steps on CartPole (`extra` appended).
-fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
+pub fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
     let mut args = vec![
         "train", "--algo", algo, "--env", "CartPole-v1", "--epochs", "3", "--steps-per-epoch", "600", "--seed", "7",
         "--quiet", "--out", path(dir),
@@ -37,7 +41,7 @@ fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
 }
 
 /// The rows without their wall-clock columns.
-fn timeless(dir: &Path) -> Vec<ProgressRow> {
+pub fn timeless(dir: &Path) -> Vec<ProgressRow> {
     progress::read(&dir.join("progress.csv"))
         .expect("progress.csv")
         .into_iter()
@@ -99,7 +103,7 @@ fn sigint_writes_a_checkpoint_and_resume_completes_the_run() {
     let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
     assert!(status.success());
     let exit = child.wait().expect("wait");
-    assert!(exit.success(), "apo should exit cleanly on SIGINT, got {exit:?}");
+    assert_eq!(exit.code(), Some(130), "an interrupted run exits with 130 after SIGINT");
     let done = timeless(&cut).len();
     assert!(done < 25, "the run should have stopped early");
     assert!(cut.join("checkpoints/latest/state.json").exists());
