@@ -30,6 +30,6 @@ printf '%s\n' "${runs[@]}" | xargs -P "$jobs" -L 1 bash -c '
   env=$0 algo=$1 seed=$2; shift 2
   '"$apo"' train --algo "$algo" --env "$env" --seed "$seed" --epochs '"$epochs"' --steps-per-epoch '"$steps"' \
     --out '"$out"'/"$env-$algo-s$seed" --force --quiet "$@" > /dev/null'
-"$apo" summary --last 10 "$out"/*/ | tee "$out/summary.csv"
+"$apo" summary --csv --last 10 "$out"/*/ | tee "$out/summary.csv"
 "$apo" plot "$out"/Pendulum-v1-{apo,papo,trpo,ppo}-s0 --out "$out/pendulum-s0.png"
 "$apo" plot "$out"/CartPole-v1-{apo,papo,trpo,ppo}-s0 --out "$out/cartpole-s0.png"

@@ -14,5 +14,5 @@ mkdir -p "$out"
 printf '%s\n' apo papo trpo ppo | xargs -P "$jobs" -I{} \
   "$apo" train --algo {} --env Hopper --seed "$seed" --epochs "$epochs" --steps-per-epoch "$steps" \
     --out "$out/Hopper-{}-s$seed" --force --quiet
-"$apo" summary --last 10 "$out"/Hopper-*-s"$seed" | tee "$out/summary.csv"
+"$apo" summary --csv --last 10 "$out"/Hopper-*-s"$seed" | tee "$out/summary.csv"
 "$apo" plot "$out"/Hopper-{apo,papo,trpo,ppo}-s"$seed" --out "$out/hopper-s$seed.png"

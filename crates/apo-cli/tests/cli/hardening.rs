@@ -284,3 +284,38 @@ fn a_second_interrupt_exits_at_once() {
     assert_eq!(code, Some(130));
     assert!(!stdout.contains("checkpoint written"), "{stdout}");
 }
+
+#[test]
+fn checkpoint_files_and_directories_are_synced_before_and_after_the_swap() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    let trace = tmp.path().join("trace.txt");
+    let status = Command::new("strace")
+        .args(["-f", "-y", "-e", "trace=fsync,rename", "-o", path(&trace), env!("CARGO_BIN_EXE_apo")])
+        .args(["train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "1", "--steps-per-epoch", "200", "--quiet"])
+        .args(["--out", path(&run)])
+        .stdout(Stdio::null())
+        .status()
+        .expect("strace runs (Debian package strace, installed by scripts/setup.sh)");
+    assert!(status.success());
+    let calls: Vec<String> = std::fs::read_to_string(&trace).expect("trace").lines().map(str::to_string).collect();
+    let first = |call: &str, arg: &str| {
+        calls
+            .iter()
+            .position(|l| l.contains(&format!(" {call}(")) && l.contains(arg))
+            .unwrap_or_else(|| panic!("no {call} of `{arg}` in the trace:\n{}", calls.join("\n")))
+    };
+    let checkpoints = format!("{}/checkpoints", path(&run));
+    let swap = first("rename", &format!("\"{checkpoints}/.tmp-1\", \"{checkpoints}/latest\""));
+    for file in ["policy.mpk", "value.mpk", "policy_optim.mpk", "value_optim.mpk", "state.json", ".manifest.json.tmp"] {
+        assert!(first("fsync", &format!("<{checkpoints}/.tmp-1/{file}>")) < swap, "{file} is synced before the swap");
+    }
+    assert!(first("fsync", &format!("<{checkpoints}/.tmp-1>")) < swap, "the new checkpoint's directory is synced before the swap");
+    let parent = format!("<{checkpoints}>)");
+    assert!(
+        calls[swap..].iter().any(|l| l.contains(" fsync(") && l.contains(&parent)),
+        "checkpoints/ is synced after the swap"
+    );
+    let progress = format!("{}/.progress.csv.tmp", path(&run));
+    assert!(first("fsync", &format!("<{progress}>")) < first("rename", &format!("\"{progress}\"")));
+}
