@@ -1,5 +1,5 @@
-//! Benchmarks behind `apo bench`: the policy update (APO vs TRPO, Hessian-vector
-//! products), the rollout policy call, and environment steps.
+//! Benchmarks behind `apo bench`: the policy update (APO vs TRPO, Hessian- and Fisher-vector
+//! products), an epoch's time split, the rollout policy call, and environment steps.
 
 use std::time::Instant;
 
@@ -8,7 +8,7 @@ use apo_core::hvp::hessian_vector_product;
 use apo_core::inference::{ActBuffers, HostPolicy};
 use apo_core::trust_region::trust_region_step;
 use apo_core::{
-    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, MlpPolicyConfig, Policy, PolicyFamily, RolloutBuffer,
+    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, FisherOperator, MlpPolicyConfig, Policy, PolicyFamily, RolloutBuffer,
     TensorBatch,
 };
 use burn::backend::Autodiff;
@@ -26,8 +26,10 @@ pub struct UpdateTimings {
     pub trpo_s: f64,
     /// One APO trust-region step.
     pub apo_s: f64,
-    /// One Hessian-vector product of the mean KL.
+    /// One Hessian-vector product of the mean KL by double backward (the reference path).
     pub hvp_s: f64,
+    /// One Fisher-vector product `Jᵀ M J v / N` (what the trust-region step uses for MLP policies).
+    pub fvp_s: f64,
     /// Line-search tries of the last TRPO and APO steps.
     pub tries: (String, String),
 }
@@ -94,7 +96,23 @@ pub fn update<B: Backend>(device: &B::Device, n: usize, obs_dim: usize, act_dim:
         })
         .skip(1)
         .collect();
-    UpdateTimings { params: theta.len(), trpo_s: median(trpo_s), apo_s: median(apo_s), hvp_s: median(hvp_s), tries }
+    let fisher = FisherOperator::new(&family, &theta, tb.obs.clone(), &tb.dist_old);
+    let fvp_s = (0..=repeats)
+        .map(|_| {
+            let start = Instant::now();
+            std::hint::black_box(fisher.apply(&v));
+            start.elapsed().as_secs_f64()
+        })
+        .skip(1)
+        .collect();
+    UpdateTimings {
+        params: theta.len(),
+        trpo_s: median(trpo_s),
+        apo_s: median(apo_s),
+        hvp_s: median(hvp_s),
+        fvp_s: median(fvp_s),
+        tries,
+    }
 }
 
 /// Microseconds per host policy call for a batch of `batch` observations.
@@ -111,4 +129,70 @@ pub fn policy_call_us(obs_dim: usize, action: ActionKind, batch: usize, calls: u
         policy.act(std::hint::black_box(&obs), batch, false, &mut rng, &mut act);
     }
     start.elapsed().as_secs_f64() * 1e6 / calls as f64
+}
+
+/// Where an epoch's time went, seconds (from the epoch's `progress.csv` row).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpochSplit {
+    /// Epoch number, from 1.
+    pub epoch: usize,
+    /// The whole epoch (from the end of the previous one; epoch 1 includes the set-up).
+    pub total_s: f64,
+    /// The rollout.
+    pub rollout_s: f64,
+    /// The policy update.
+    pub policy_s: f64,
+    /// The value update.
+    pub value_s: f64,
+    /// Everything else: host-copy synchronization, progress and checkpoint writes.
+    pub other_s: f64,
+    /// Environment steps per second over the epoch (`steps / total_s`).
+    pub steps_per_s: f64,
+}
+
+/// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards)
+/// and returns each epoch's time split.
+pub fn epoch(config: &crate::RunConfig) -> anyhow::Result<Vec<EpochSplit>> {
+    use std::sync::atomic::AtomicBool;
+    struct Silent;
+    impl crate::trainer::Observer for Silent {
+        fn epoch(&mut self, _: &crate::progress::ProgressRow, _: usize) {}
+    }
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
+    let dir = std::env::temp_dir().join(format!("apo-bench-epoch-{}-{nanos}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let stop = AtomicBool::new(false);
+    let trained = match config.backend {
+        crate::BackendKind::Cpu => crate::trainer::train::<burn::backend::NdArray>(config, &dir, &Default::default(), false, &stop, &mut Silent),
+        crate::BackendKind::Wgpu => crate::trainer::train::<burn::backend::Wgpu>(config, &dir, &Default::default(), false, &stop, &mut Silent),
+    };
+    let rows = trained.and_then(|_| crate::progress::read(&dir.join(crate::run_dir::PROGRESS)));
+    let _ = std::fs::remove_dir_all(&dir);
+    let rows = rows?;
+    let mut previous = (0.0, 0u64);
+    Ok(rows
+        .iter()
+        .map(|r| {
+            let (total_s, steps) = (r.time_s - previous.0, r.env_steps - previous.1);
+            previous = (r.time_s, r.env_steps);
+            EpochSplit {
+                epoch: r.epoch,
+                total_s,
+                rollout_s: r.rollout_s,
+                policy_s: r.update_pi_s,
+                value_s: r.update_v_s,
+                other_s: total_s - r.rollout_s - r.update_pi_s - r.update_v_s,
+                steps_per_s: steps as f64 / total_s.max(1e-9),
+            }
+        })
+        .collect())
+}
+
+/// The median of `values` (`NaN` for none).
+pub fn median_of(values: impl IntoIterator<Item = f64>) -> f64 {
+    let v: Vec<f64> = values.into_iter().collect();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    median(v)
 }

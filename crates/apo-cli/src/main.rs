@@ -100,7 +100,8 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
-    /// Time one APO and one TRPO trust-region update and a Hessian-vector product.
+    /// Time one APO and one TRPO trust-region update, a KL Hessian-vector product (double
+    /// backward) and a Fisher-vector product.
     Update {
         /// Backend.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
@@ -117,6 +118,28 @@ enum BenchCommand {
         /// Timed repeats (after one warm-up); the median is printed.
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]
         repeats: u64,
+    },
+    /// Train a few epochs and print where each epoch's time goes (rollout, policy update,
+    /// value update, other) and the end-to-end steps/s (medians over epochs 2.. on the last line).
+    Epoch {
+        /// Algorithm.
+        #[arg(long, value_parser = parse_algo, default_value = "apo")]
+        algo: Algorithm,
+        /// Environment name.
+        #[arg(long, default_value = "Hopper")]
+        env: String,
+        /// Environment steps per epoch.
+        #[arg(long, default_value_t = 4000)]
+        steps_per_epoch: usize,
+        /// Epochs (the first includes the set-up and is left out of the medians).
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(2..=1000))]
+        epochs: u64,
+        /// Environments stepped together.
+        #[arg(long, default_value_t = 1)]
+        num_envs: usize,
+        /// Backend of the updates.
+        #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
+        backend: BackendKind,
     },
     /// Environment steps per second of one environment with random actions.
     Env {
@@ -291,7 +314,45 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries.0);
             println!("apo_update_s={:.4} ({})", t.apo_s, t.tries.1);
             println!("hvp_s={:.5}", t.hvp_s);
+            println!("fvp_s={:.5}", t.fvp_s);
             println!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s);
+        }
+        BenchCommand::Epoch { algo, env, steps_per_epoch, epochs, num_envs, backend } => {
+            let spec = apo_envs::registry::spec(&env)?;
+            let config = RunConfig {
+                env: env.clone(),
+                steps_per_epoch,
+                epochs: epochs as usize,
+                num_envs,
+                backend,
+                checkpoint_every: 1,
+                ..RunConfig::defaults(algo, &env)
+            };
+            config.validate()?;
+            config.check_memory(spec.observation_dim, trainer::action_kind(&spec.action_space))?;
+            if backend == BackendKind::Wgpu {
+                quiet_wgpu();
+            }
+            let split = apo_cli::bench::epoch(&config)?;
+            println!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend}");
+            println!("epoch  total_s  rollout_s  policy_s  value_s  other_s  steps_per_s");
+            for e in &split {
+                println!(
+                    "{:>5}  {:>7.3}  {:>9.3}  {:>8.3}  {:>7.3}  {:>7.3}  {:>11.0}",
+                    e.epoch, e.total_s, e.rollout_s, e.policy_s, e.value_s, e.other_s, e.steps_per_s
+                );
+            }
+            let later = split.get(1..).unwrap_or_default();
+            let med = |f: fn(&apo_cli::bench::EpochSplit) -> f64| apo_cli::bench::median_of(later.iter().map(f));
+            println!(
+                "median_epochs_2_on: total_s={:.3} rollout_s={:.3} policy_s={:.3} value_s={:.3} other_s={:.3} steps_per_s={:.0}",
+                med(|e| e.total_s),
+                med(|e| e.rollout_s),
+                med(|e| e.policy_s),
+                med(|e| e.value_s),
+                med(|e| e.other_s),
+                med(|e| e.steps_per_s)
+            );
         }
         BenchCommand::Env { env, steps } => {
             let mut e = apo_envs::make(&env)?;

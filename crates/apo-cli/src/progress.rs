@@ -6,7 +6,7 @@ use apo_core::{EpisodeStats, LineSearchOutcome, UpdateReport};
 use serde::{Deserialize, Serialize};
 
 /// The columns that depend on wall-clock time (everything else is reproducible).
-pub const TIME_COLUMNS: [&str; 2] = ["steps_per_s", "time_s"];
+pub const TIME_COLUMNS: [&str; 5] = ["steps_per_s", "time_s", "rollout_s", "update_pi_s", "update_v_s"];
 
 /// One epoch's row. Return statistics are empty when no episode ended in the epoch.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -55,6 +55,26 @@ pub struct ProgressRow {
     pub steps_per_s: f64,
     /// Wall time since the run started, seconds.
     pub time_s: f64,
+    /// Wall time of the epoch's rollout, seconds.
+    #[serde(default)]
+    pub rollout_s: f64,
+    /// Wall time of the epoch's policy update, seconds.
+    #[serde(default)]
+    pub update_pi_s: f64,
+    /// Wall time of the epoch's value update, seconds.
+    #[serde(default)]
+    pub update_v_s: f64,
+}
+
+/// Wall times of an epoch's phases, seconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EpochTimes {
+    /// The rollout.
+    pub rollout_s: f64,
+    /// Steps per second over the whole epoch.
+    pub steps_per_s: f64,
+    /// Since the run started.
+    pub time_s: f64,
 }
 
 impl ProgressRow {
@@ -65,8 +85,7 @@ impl ProgressRow {
         stats: Option<&EpisodeStats>,
         unstable_episodes: usize,
         report: &UpdateReport,
-        steps_per_s: f64,
-        time_s: f64,
+        times: EpochTimes,
     ) -> Self {
         let line_search = report.line_search.map(|o| match o {
             LineSearchOutcome::Accepted { r#try } => format!("accepted:{}", r#try),
@@ -94,8 +113,11 @@ impl ProgressRow {
             line_search,
             pi_steps: report.proximal.map(|p| p.steps),
             unstable_episodes,
-            steps_per_s,
-            time_s,
+            steps_per_s: times.steps_per_s,
+            time_s: times.time_s,
+            rollout_s: times.rollout_s,
+            update_pi_s: report.policy_update_s,
+            update_v_s: report.value_update_s,
         }
     }
 }

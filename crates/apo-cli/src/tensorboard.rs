@@ -118,6 +118,9 @@ pub fn row_scalars(row: &ProgressRow) -> Vec<(&'static str, f64)> {
         ("progress/env_steps", row.env_steps as f64),
         ("progress/time_s", row.time_s),
         ("speed/steps_per_s", row.steps_per_s),
+        ("time/rollout_s", row.rollout_s),
+        ("time/update_pi_s", row.update_pi_s),
+        ("time/update_v_s", row.update_v_s),
     ];
     optional
         .into_iter()
@@ -403,6 +406,9 @@ mod tests {
             unstable_episodes: 0,
             steps_per_s: 1500.0,
             time_s: 8.0,
+            rollout_s: 1.0,
+            update_pi_s: 2.0,
+            update_v_s: 3.0,
         }
     }
 

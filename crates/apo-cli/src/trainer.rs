@@ -36,7 +36,7 @@ use rand::SeedableRng;
 
 use crate::checkpoint::{self, Shapes, TrainState, Which};
 use crate::config::RunConfig;
-use crate::progress::{self, ProgressRow};
+use crate::progress::{self, EpochTimes, ProgressRow};
 use crate::tensorboard::{row_scalars, EventWriter};
 
 /// A seed for stream `stream` of epoch `epoch` of a run seeded `seed` (SplitMix64 mixing).
@@ -341,11 +341,13 @@ pub fn train<B: Backend>(
         let epoch_start = Instant::now();
         let seed = derive_seed(config.seed, epoch as u64, 0);
         let steps_before = state.env_steps;
+        let rollout_start = Instant::now();
         let Some(rollout) = collector.collect(&mut actor, seed, stop, &mut |steps| observer.steps(steps_before + steps)) else {
             checkpoint::save(run_dir, &learner, &state, &shapes, false).context("writing the checkpoint after an interrupt")?;
             tracing::warn!(epoch = state.epoch, "interrupted; checkpoint written");
             return Ok(TrainEnd::Interrupted { epoch: state.epoch });
         };
+        let rollout_s = rollout_start.elapsed().as_secs_f64();
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
         let report = learner.update(&rollout.batch, &mut rng);
         if let Some(what) = non_finite(&report, &learner) {
@@ -375,8 +377,7 @@ pub fn train<B: Backend>(
             stats.as_ref(),
             rollout.unstable,
             &report,
-            steps_per_s,
-            state.elapsed_s,
+            EpochTimes { rollout_s, steps_per_s, time_s: state.elapsed_s },
         );
         let shown = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| format!("{v:.3}"));
         tracing::info!(

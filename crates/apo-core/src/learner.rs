@@ -51,6 +51,10 @@ pub struct UpdateReport {
     pub line_search: Option<LineSearchOutcome>,
     /// Proximal step report (PAPO, PPO, A2C).
     pub proximal: Option<ProximalReport>,
+    /// Wall time of the policy update (with the evaluation of the terms at θ_j), seconds.
+    pub policy_update_s: f64,
+    /// Wall time of the value update, seconds.
+    pub value_update_s: f64,
 }
 
 /// A policy of family `F` and a value network, with their Adam states, on `Autodiff<B>`.
@@ -172,6 +176,7 @@ where
     /// One epoch's update of the policy (by the configured algorithm) and of the value
     /// network, on `batch` collected by the current policy; `rng` shuffles minibatches.
     pub fn update(&mut self, batch: &Batch, rng: &mut impl Rng) -> UpdateReport {
+        let start = std::time::Instant::now();
         let objective = self.config.objective();
         let tb = TensorBatch::<B>::new(batch, self.action, &self.device);
         let theta = self.policy_params();
@@ -200,9 +205,12 @@ where
             self.policy = policy;
             (None, Some(report))
         };
+        let policy_update_s = start.elapsed().as_secs_f64();
+        let value_start = std::time::Instant::now();
         let (value, value_report) =
             value_update(self.value.clone(), &mut self.value_optim, &tb1, &self.config.value_update, rng);
         self.value = value;
+        let value_update_s = value_start.elapsed().as_secs_f64();
 
         let after = self.policy_on::<B>(&self.device);
         let kl = to_host(after.distribution(tb.obs.clone()).kl_from(&tb.dist_old).mean())[0];
@@ -216,6 +224,8 @@ where
             loss_v: value_report.loss_before,
             line_search,
             proximal,
+            policy_update_s,
+            value_update_s,
         }
     }
 }

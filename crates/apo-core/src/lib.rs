@@ -6,14 +6,19 @@
 //! * [`policy`], [`value`], [`distribution`] — the networks and their distributions;
 //! * [`buffer`] — the rollout buffer with one-step advantages, GAE and rewards-to-go;
 //! * [`objective`] — every objective, term by term, with the paper's names;
-//! * [`trust_region`] — conjugate gradient on Hessian-vector products, step scaling, line search;
+//! * [`trust_region`] — conjugate gradient on Fisher-vector products, step scaling, line search;
+//! * [`fisher`] — the trust region's Fisher-vector product `Jᵀ M J v / N` by a forward-mode JVP
+//!   and one backward pass (double-backward Hessian-vector products, [`hvp`], for policies
+//!   without a JVP);
 //! * [`proximal`] — Adam with KL early stopping, and the value update;
 //! * [`metrics`] — per-epoch statistics, the bound `J − k·Var` and its confidence;
 //! * [`learner`] — one object that updates a policy and a critic with any algorithm.
 
+mod activation;
 pub mod buffer;
 pub mod config;
 pub mod distribution;
+pub mod fisher;
 pub mod flat;
 pub mod hvp;
 pub mod inference;
@@ -34,6 +39,7 @@ pub use proximal::{ProximalConfig, ProximalReport};
 pub use trust_region::{LineSearchOutcome, TrustRegionConfig, TrustRegionReport};
 pub use buffer::{Batch, BufferLayout, RolloutBuffer};
 pub use distribution::DistParams;
+pub use fisher::FisherOperator;
 pub use objective::{ApoParams, HMax, Objective, ObjectiveTerms};
 pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
 pub use tensor_batch::TensorBatch;

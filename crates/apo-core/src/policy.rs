@@ -44,6 +44,23 @@ pub trait Policy<B: Backend>: Module<B> {
     /// The operations used must be twice differentiable for the trust-region algorithms
     /// (all of Burn's elementwise float ops, `matmul`, `tanh`, `exp`, `log`, sums and means are).
     fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B>;
+
+    /// The Jacobian-vector product of [`Policy::distribution`] with respect to the
+    /// parameters: `obs: [batch, observation_dim]` and `tangent`, a module of the same
+    /// architecture whose parameters hold the direction `v` (for a flat `v: [num_params]`,
+    /// [`crate::flat::unflatten`]`(self.clone(), v)` builds it), →
+    /// `J v = d/dε distribution_{θ + εv}(obs)` at `ε = 0`, in the same layout as
+    /// [`Policy::distribution`]'s output: the tangents of the means `[batch, action_dim]` and
+    /// of the log standard deviations `[batch, action_dim]` for a Gaussian, of the logits
+    /// `[batch, n]` for a categorical.
+    ///
+    /// It lets the trust-region step apply the Fisher matrix by first-order passes only
+    /// (see [`crate::fisher`]). The default, `None`, means "not available": the
+    /// trust-region step then uses the double-backward Hessian-vector product of the KL,
+    /// which needs nothing beyond [`Policy::distribution`].
+    fn distribution_jvp(&self, _obs: Tensor<B, 2>, _tangent: &Self) -> Option<DistParams<B>> {
+        None
+    }
 }
 
 /// A description of a policy that can build the same architecture on any backend.
@@ -119,6 +136,22 @@ impl<B: Backend> Policy<B> for MlpPolicy<B> {
                 DistParams::Gaussian { mean: out, log_std }
             }
             None => DistParams::Categorical { logits: out },
+        }
+    }
+
+    /// Forward-mode tangents through the MLP ([`Mlp::jvp`]); the log-std tangent is the
+    /// tangent's log-std `[action_dim]` expanded to the batch (it does not depend on the state).
+    fn distribution_jvp(&self, obs: Tensor<B, 2>, tangent: &Self) -> Option<DistParams<B>> {
+        let out = self.net.jvp(obs, &tangent.net);
+        match (&self.log_std, &tangent.log_std) {
+            (Some(_), Some(d_log_std)) => {
+                let dims = out.dims();
+                let log_std = d_log_std.val().unsqueeze_dim::<2>(0).expand(dims);
+                Some(DistParams::Gaussian { mean: out, log_std })
+            }
+            (None, None) => Some(DistParams::Categorical { logits: out }),
+            // a tangent of the other family: not a direction in this policy's parameters
+            _ => None,
         }
     }
 }

@@ -1,7 +1,9 @@
 //! The trust-region step of TRPO and APO.
 //!
-//! At θ_j, with `g = ∇ objective(θ_j)` and `F = ∇² mean KL(π_j ‖ π_θ)|θ_j` (applied as
-//! Hessian-vector products by double backward, plus `damping · I`):
+//! At θ_j, with `g = ∇ objective(θ_j)` and `F = ∇² mean KL(π_j ‖ π_θ)|θ_j` (plus
+//! `damping · I`), applied to vectors as `(1/N) Jᵀ M J v` by first-order passes
+//! ([`crate::fisher`]) when the policy has a JVP ([`Policy::distribution_jvp`]), else as
+//! Hessian-vector products by double backward ([`crate::hvp::hessian_vector_product`]):
 //!
 //! 1. `x ≈ F⁻¹ g` by conjugate gradient;
 //! 2. the full step `Δ = sqrt(2δ / xᵀFx) · x` — the maximizer of the linearized objective
@@ -13,6 +15,7 @@ use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
 use serde::{Deserialize, Serialize};
 
+use crate::fisher::FisherOperator;
 use crate::flat::{from_host, to_host, unflatten};
 use crate::hvp::{gradient, hessian_vector_product, Autodiff2};
 use crate::objective::Objective;
@@ -173,14 +176,18 @@ where
         objective.evaluate(&p.distribution(batch1.obs.clone()), &batch1).objective
     });
 
+    // θ_j is fixed during the whole solve: both operators are prepared once
+    let fisher = FisherOperator::new(family, theta, batch.obs.clone(), &batch.dist_old);
     let batch2 = batch1.lift::<Autodiff2<B>>();
     let template2 = family.init::<Autodiff2<B>>(&device);
     let fvp = |v: &[f64]| -> Vec<f64> {
-        let mut hv = hessian_vector_product::<B, _>(&template2, theta, v, &device, |p| {
-            p.distribution(batch2.obs.clone()).kl_from(&batch2.dist_old).mean()
+        let mut fv = fisher.apply(v).unwrap_or_else(|| {
+            hessian_vector_product::<B, _>(&template2, theta, v, &device, |p| {
+                p.distribution(batch2.obs.clone()).kl_from(&batch2.dist_old).mean()
+            })
         });
-        axpy(config.cg_damping, v, &mut hv);
-        hv
+        axpy(config.cg_damping, v, &mut fv);
+        fv
     };
     let cg = conjugate_gradient(&fvp, &g, config.cg_iters, config.cg_residual_tol);
     let x_fx = dot(&cg.x, &fvp(&cg.x));

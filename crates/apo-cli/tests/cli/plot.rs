@@ -36,6 +36,9 @@ fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> ProgressR
         unstable_episodes: 0,
         steps_per_s: 1000.0,
         time_s: epoch as f64,
+        rollout_s: 0.5,
+        update_pi_s: 0.25,
+        update_v_s: 0.25,
     }
 }
 

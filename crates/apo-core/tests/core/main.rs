@@ -8,6 +8,7 @@ mod common;
 
 mod buffer;
 mod distributions;
+mod fisher;
 mod hvp;
 mod learner;
 mod objectives;

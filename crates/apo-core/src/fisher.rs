@@ -1,0 +1,185 @@
+//! The Fisher matrix of the policy at θ_j, applied to a vector by first-order passes only.
+//!
+//! The trust-region step solves `(F + damping · I) x = g` by conjugate gradient, where
+//! `F = ∇²_θ (1/N) Σ_s KL(π_j(·|s) ‖ π_θ(·|s))` at `θ = θ_j`. Write `d_θ(s)` for the
+//! distribution parameters of state `s` (means and log-stds, or logits). At `θ = θ_j` the
+//! KL's gradient in `d` vanishes (the KL is minimal, 0, there), so the term of the chain rule
+//! with second derivatives of `d_θ` drops out and
+//!
+//! ```text
+//! F = (1/N) Σ_s J_sᵀ M_s J_s,    J_s = ∂d_θ(s)/∂θ  [param_dim, num_params],
+//!                                M_s = ∇²_d KL(π_j(·|s) ‖ π_d)|_{d = d_j(s)}  [param_dim, param_dim],
+//! ```
+//!
+//! `M_s` being the Fisher information of the action distribution in its parameters:
+//!
+//! * diagonal Gaussian in `(mean, log_std)`: `M = diag(1/σ_i² for each mean, 2 for each log-std)`.
+//!   From the analytic KL of [`DistParams::kl_from`],
+//!   `Σ_i [s_i − s_j,i + (σ_j,i² + (μ_j,i − μ_i)²) e^{−2 s_i} / 2 − ½]` with `s = log σ`:
+//!   `∂²/∂μ_i² = e^{−2 s_i} = 1/σ_i²`, `∂²/∂s_i² = 2 (σ_j,i² + (μ_j,i − μ_i)²) e^{−2 s_i} = 2` and
+//!   `∂²/∂μ_i∂s_i = 2 (μ_j,i − μ_i) e^{−2 s_i} = 0` at `d = d_j`. (The textbook Fisher information
+//!   of `N(μ, σ²)` in `(μ, σ)` is `diag(1/σ², 2/σ²)`; `dσ/ds = σ` turns `2/σ²` into 2.)
+//! * categorical in logits `l`: `M = diag(p) − p pᵀ`. `KL = Σ_a p_j(a) ln p_j(a) − Σ_a p_j(a) l_a
+//!   + ln Σ_a e^{l_a}`, whose Hessian in `l` is that of log-sum-exp, `diag(p) − p pᵀ`
+//!   (Boyd & Vandenberghe, *Convex Optimization*, §3.1.5), at `p = p_j`.
+//!
+//! This is the Fisher-vector product of TRPO (Schulman et al., "Trust Region Policy
+//! Optimization", ICML 2015, Appendix C: `A = Jᵀ M J` with `M` the Fisher information of the
+//! distribution in its parameter vector), i.e. the generalized Gauss–Newton matrix of the KL
+//! (Martens, "New insights and perspectives on the natural gradient method", JMLR 2020).
+//! So `F v = (1/N) Jᵀ (M (J v))`, computed as
+//!
+//! 1. `J v` by forward-mode tangents, [`Policy::distribution_jvp`], on the plain backend;
+//! 2. `u = M (J v)` elementwise, with π_j's `σ` or `p` (the batch's `dist_old`: at θ_j they
+//!    are the current policy's);
+//! 3. `Jᵀ u / N` as the gradient of `(1/N) Σ_s ⟨u_s, d_θ(s)⟩` with `u` a constant, by one
+//!    first-order backward pass on `Autodiff<B>` ([`crate::hvp::gradient`]).
+//!
+//! No second derivative is taken: one product costs about a forward-mode pass and a
+//! forward-backward pass, instead of the double backward through `Autodiff<Autodiff<B>>` of
+//! [`crate::hvp::hessian_vector_product`], which stays the reference and the fallback for
+//! policies without a JVP.
+
+use burn::backend::Autodiff;
+use burn::tensor::activation::softmax;
+use burn::tensor::backend::Backend;
+use burn::tensor::Tensor;
+
+use crate::distribution::DistParams;
+use crate::flat::{from_host, unflatten};
+use crate::hvp::gradient;
+use crate::policy::{Policy, PolicyFamily};
+
+/// What `M_s` needs of π_j, per state.
+#[derive(Debug, Clone)]
+enum Metric<B: Backend> {
+    /// `1/σ²` of π_j, `[batch, action_dim]` (the log-std block of `M` is the constant 2).
+    Gaussian { inv_var: Tensor<B, 2> },
+    /// `p` of π_j, `[batch, n]`.
+    Categorical { probs: Tensor<B, 2> },
+}
+
+impl<B: Backend> Metric<B> {
+    fn new(dist: &DistParams<B>) -> Self {
+        match dist {
+            DistParams::Gaussian { log_std, .. } => Metric::Gaussian { inv_var: log_std.clone().mul_scalar(-2.0).exp() },
+            DistParams::Categorical { logits } => Metric::Categorical { probs: softmax(logits.clone(), 1) },
+        }
+    }
+
+    /// `M_s t_s` for every state, for tangents `t` of the same family (`None` for the other).
+    fn apply(&self, t: DistParams<B>) -> Option<DistParams<B>> {
+        match (self, t) {
+            (Metric::Gaussian { inv_var }, DistParams::Gaussian { mean, log_std }) => {
+                Some(DistParams::Gaussian { mean: mean * inv_var.clone(), log_std: log_std.mul_scalar(2.0) })
+            }
+            (Metric::Categorical { probs }, DistParams::Categorical { logits }) => {
+                // (diag(p) − p pᵀ) t = p ⊙ (t − pᵀt)
+                let p_t = (probs.clone() * logits.clone()).sum_dim(1);
+                Some(DistParams::Categorical { logits: probs.clone() * (logits - p_t) })
+            }
+            _ => None,
+        }
+    }
+}
+
+/// `d` as constants of `Autodiff<B>` (no copy).
+fn lift<B: Backend>(d: DistParams<B>) -> DistParams<Autodiff<B>> {
+    match d {
+        DistParams::Gaussian { mean, log_std } => {
+            DistParams::Gaussian { mean: Tensor::from_inner(mean), log_std: Tensor::from_inner(log_std) }
+        }
+        DistParams::Categorical { logits } => DistParams::Categorical { logits: Tensor::from_inner(logits) },
+    }
+}
+
+/// `Σ_s ⟨u_s, d_s⟩` → `[1]`; `Err` with a zero that depends on `d` when the families differ.
+fn pairing<B: Backend>(d: DistParams<B>, u: DistParams<B>) -> Result<Tensor<B, 1>, Tensor<B, 1>> {
+    match (d, u) {
+        (DistParams::Gaussian { mean, log_std }, DistParams::Gaussian { mean: u_mean, log_std: u_log_std }) => {
+            Ok((mean * u_mean).sum() + (log_std * u_log_std).sum())
+        }
+        (DistParams::Categorical { logits }, DistParams::Categorical { logits: u_logits }) => Ok((logits * u_logits).sum()),
+        (DistParams::Gaussian { mean: d, .. } | DistParams::Categorical { logits: d }, _) => Err(d.sum().mul_scalar(0.0)),
+    }
+}
+
+/// The Fisher matrix `F = (1/N) Σ_s J_sᵀ M_s J_s` of a policy of family `F` at θ_j on a
+/// batch of `N` states, as a linear operator on host vectors (see the [module](self) docs).
+///
+/// Built once per trust-region step: everything that does not change between the
+/// conjugate-gradient iterations (π_j's module, the observations on both backends, `M`) is
+/// prepared here, and [`FisherOperator::apply`] runs only the JVP, `M`'s elementwise
+/// product and one backward pass.
+pub struct FisherOperator<B: Backend, F: PolicyFamily> {
+    /// π_j on `B`: the point of the JVP and the template of the tangent modules.
+    policy: F::Policy<B>,
+    /// A module of the family on `Autodiff<B>` (its values are replaced by θ_j).
+    template_ad: F::Policy<Autodiff<B>>,
+    /// θ_j, `[num_params]`.
+    theta: Vec<f64>,
+    /// Observations, `[N, observation_dim]`.
+    obs: Tensor<B, 2>,
+    /// The same observations as constants of `Autodiff<B>`.
+    obs_ad: Tensor<Autodiff<B>, 2>,
+    /// `M_s` of each state.
+    metric: Metric<B>,
+}
+
+impl<B: Backend, F: PolicyFamily> FisherOperator<B, F> {
+    /// The Fisher matrix at `theta` (θ_j, `[num_params]`) over the states `obs`
+    /// (`[N, observation_dim]`), whose distributions under θ_j are `dist_old` (`[N, ·]`, the
+    /// batch's; `M` is taken from its `σ` or `p`).
+    pub fn new(family: &F, theta: &[f64], obs: Tensor<B, 2>, dist_old: &DistParams<B>) -> Self {
+        let device = obs.device();
+        Self {
+            policy: unflatten(family.init::<B>(&device), from_host::<B>(theta, &device)),
+            template_ad: family.init::<Autodiff<B>>(&device),
+            theta: theta.to_vec(),
+            obs_ad: Tensor::from_inner(obs.clone()),
+            obs,
+            metric: Metric::new(dist_old),
+        }
+    }
+
+    /// `F v` for `v: [num_params]` → `[num_params]`, by first-order passes.
+    ///
+    /// `None` when the policy has no JVP ([`Policy::distribution_jvp`] returned `None`) or
+    /// its JVP or distributions are not of `dist_old`'s family: use the double-backward
+    /// Hessian-vector product of the mean KL ([`crate::hvp::hessian_vector_product`]) then.
+    ///
+    /// # Panics
+    /// If `v` does not have exactly as many elements as the policy has parameters.
+    pub fn apply(&self, v: &[f64]) -> Option<Vec<f64>> {
+        let device = self.obs.device();
+        let tangent = unflatten(self.policy.clone(), from_host::<B>(v, &device));
+        let jv = self.policy.distribution_jvp(self.obs.clone(), &tangent)?;
+        let u = lift(self.metric.apply(jv)?);
+        let n = self.obs.dims()[0] as f64;
+        let mut families_match = true;
+        let (_, fv) = gradient(&self.template_ad, &self.theta, &device, |p| {
+            let d = p.distribution(self.obs_ad.clone());
+            pairing(d, u)
+                .unwrap_or_else(|zero| {
+                    families_match = false;
+                    zero
+                })
+                .div_scalar(n)
+        });
+        families_match.then_some(fv)
+    }
+}
+
+/// `F v` at `theta` (θ_j, `[num_params]`) over the states `obs` (`[N, observation_dim]`)
+/// with π_j's distributions `dist_old`, for one `v: [num_params]` → `[num_params]`:
+/// [`FisherOperator::new`] then [`FisherOperator::apply`] (build the operator once to apply
+/// it to several vectors). `None` when the policy has no JVP.
+pub fn fisher_vector_product<B: Backend, F: PolicyFamily>(
+    family: &F,
+    theta: &[f64],
+    obs: Tensor<B, 2>,
+    dist_old: &DistParams<B>,
+    v: &[f64],
+) -> Option<Vec<f64>> {
+    FisherOperator::new(family, theta, obs, dist_old).apply(v)
+}
