@@ -8,10 +8,12 @@
 //!   distributions, the MLP forward pass (from a flat parameter vector), every objective;
 //! * finite differences of those references;
 //! * [`backend`]: the backend-generic check bodies (objective terms, gradients, HVPs),
-//!   written once and called for NdArray<f64>, wgpu and NdArray<f32>.
+//!   written once and called for NdArray<f64>, wgpu and NdArray<f32>;
+//! * [`fisher`]: the same for the MLP policy's JVP and the Fisher-vector product.
 #![allow(dead_code)]
 
 pub mod backend;
+pub mod fisher;
 
 use std::sync::OnceLock;
 
