@@ -26,6 +26,14 @@ fn spawn(args: &[&str]) -> Child {
         .expect("spawn apo")
 }
 
+/// A 500-epoch PPO run on CartPole in `dir`, to be stopped by the test.
+fn long_run(dir: &Path) -> Child {
+    spawn(&[
+        "train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "500", "--steps-per-epoch", "200", "--quiet", "--out",
+        path(dir),
+    ])
+}
+
 fn wait_for(file: &Path) {
     let deadline = Instant::now() + Duration::from_secs(300);
     while !file.exists() {
@@ -160,10 +168,7 @@ fn damaged_or_foreign_checkpoint_files_are_named() {
 fn a_second_training_on_a_run_directory_is_refused() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
-    let child = spawn(&[
-        "train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "500", "--steps-per-epoch", "200", "--quiet", "--out",
-        path(&run),
-    ]);
+    let child = long_run(&run);
     wait_for(&run.join("progress.csv"));
     let err = fails(&["train", "--resume", path(&run), "--quiet"]);
     assert!(err.contains("in use by another apo process"), "{err}");
@@ -250,10 +255,7 @@ fn a_diverging_update_stops_the_run_with_an_error_and_keeps_the_last_good_checkp
 fn sigterm_checkpoints_and_exits_143_with_the_resume_command() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
-    let child = spawn(&[
-        "train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "500", "--steps-per-epoch", "200", "--quiet", "--out",
-        path(&run),
-    ]);
+    let child = long_run(&run);
     wait_for(&run.join("progress.csv"));
     signal(&child, "TERM");
     let (code, stdout, stderr) = finish(child, 120);
