@@ -9,7 +9,10 @@ use std::path::Path;
 /// never a part, and the new content survives a power loss once this returns.
 pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = parent(path);
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let tmp = dir.join(format!(".{name}.tmp"));
     {
         let mut file = std::fs::File::create(&tmp)?;

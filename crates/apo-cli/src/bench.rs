@@ -8,8 +8,8 @@ use apo_core::hvp::hessian_vector_product;
 use apo_core::inference::{ActBuffers, HostPolicy};
 use apo_core::trust_region::trust_region_step;
 use apo_core::{
-    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, FisherOperator, MlpPolicyConfig, Policy, PolicyFamily, RolloutBuffer,
-    TensorBatch,
+    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, FisherOperator, MlpPolicyConfig,
+    Policy, PolicyFamily, RolloutBuffer, TensorBatch,
 };
 use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
@@ -41,8 +41,18 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// A synthetic epoch: `n` Gaussian observations of `obs_dim`, actions sampled from a fresh
 /// (64, 64) policy, random rewards and values, paths of 1000 steps.
-pub fn synthetic_batch(policy: &mut HostPolicy, n: usize, obs_dim: usize, act_dim: usize, rng: &mut StdRng) -> Batch {
-    let layout = BufferLayout { observation_dim: obs_dim, action_width: act_dim, dist_width: 2 * act_dim };
+pub fn synthetic_batch(
+    policy: &mut HostPolicy,
+    n: usize,
+    obs_dim: usize,
+    act_dim: usize,
+    rng: &mut StdRng,
+) -> Batch {
+    let layout = BufferLayout {
+        observation_dim: obs_dim,
+        action_width: act_dim,
+        dist_width: 2 * act_dim,
+    };
     let mut buffer = RolloutBuffer::new(layout, 0.99, 0.97, n);
     let mut act = ActBuffers::default();
     let mut obs = vec![0.0f32; obs_dim];
@@ -59,7 +69,13 @@ pub fn synthetic_batch(policy: &mut HostPolicy, n: usize, obs_dim: usize, act_di
 }
 
 /// Times APO and TRPO trust-region steps and KL Hessian-vector products on backend `B`.
-pub fn update<B: Backend>(device: &B::Device, n: usize, obs_dim: usize, act_dim: usize, repeats: usize) -> UpdateTimings {
+pub fn update<B: Backend>(
+    device: &B::Device,
+    n: usize,
+    obs_dim: usize,
+    act_dim: usize,
+    repeats: usize,
+) -> UpdateTimings {
     let action = ActionKind::Continuous { dim: act_dim };
     let family = MlpPolicyConfig::new(obs_dim, action);
     B::seed(device, 0);
@@ -69,13 +85,25 @@ pub fn update<B: Backend>(device: &B::Device, n: usize, obs_dim: usize, act_dim:
     let mut host = HostPolicy::new(&policy_b, action);
     let batch = synthetic_batch(&mut host, n, obs_dim, act_dim, &mut rng);
     let tb = TensorBatch::<B>::new(&batch, action, device);
-    let (trpo, apo) = (AlgoConfig::paper_defaults(Algorithm::Trpo), AlgoConfig::paper_defaults(Algorithm::Apo));
+    let (trpo, apo) = (
+        AlgoConfig::paper_defaults(Algorithm::Trpo),
+        AlgoConfig::paper_defaults(Algorithm::Apo),
+    );
     let (mut trpo_s, mut apo_s, mut tries) = (vec![], vec![], (String::new(), String::new()));
     // one warm-up of each, then alternate so that both see the same machine state
     for round in 0..=repeats {
-        for (config, times, tried) in [(&trpo, &mut trpo_s, &mut tries.0), (&apo, &mut apo_s, &mut tries.1)] {
+        for (config, times, tried) in [
+            (&trpo, &mut trpo_s, &mut tries.0),
+            (&apo, &mut apo_s, &mut tries.1),
+        ] {
             let start = Instant::now();
-            let report = trust_region_step(&family, &config.objective(), &theta, &tb, &config.trust_region);
+            let report = trust_region_step(
+                &family,
+                &config.objective(),
+                &theta,
+                &tb,
+                &config.trust_region,
+            );
             if round > 0 {
                 times.push(start.elapsed().as_secs_f64());
             }
@@ -84,12 +112,16 @@ pub fn update<B: Backend>(device: &B::Device, n: usize, obs_dim: usize, act_dim:
     }
     let tb2 = tb.lift::<Autodiff<B>>().lift::<Autodiff<Autodiff<B>>>();
     let template = family.init::<Autodiff<Autodiff<B>>>(device);
-    let v: Vec<f64> = (0..theta.len()).map(|_| rng.sample(StandardNormal)).collect();
+    let v: Vec<f64> = (0..theta.len())
+        .map(|_| rng.sample(StandardNormal))
+        .collect();
     let hvp_s = (0..=repeats)
         .map(|_| {
             let start = Instant::now();
             let hv = hessian_vector_product::<B, _>(&template, &theta, &v, device, |p| {
-                p.distribution(tb2.obs.clone()).kl_from(&tb2.dist_old).mean()
+                p.distribution(tb2.obs.clone())
+                    .kl_from(&tb2.dist_old)
+                    .mean()
             });
             std::hint::black_box(hv);
             start.elapsed().as_secs_f64()
@@ -121,7 +153,9 @@ pub fn policy_call_us(obs_dim: usize, action: ActionKind, batch: usize, calls: u
     let device = Default::default();
     let mut policy = HostPolicy::new(&family.init::<burn::backend::NdArray>(&device), action);
     let mut rng = StdRng::seed_from_u64(0);
-    let obs: Vec<f32> = (0..obs_dim * batch).map(|_| rng.sample(StandardNormal)).collect();
+    let obs: Vec<f32> = (0..obs_dim * batch)
+        .map(|_| rng.sample(StandardNormal))
+        .collect();
     let mut act = ActBuffers::default();
     policy.act(&obs, batch, false, &mut rng, &mut act);
     let start = Instant::now();
@@ -158,13 +192,29 @@ pub fn epoch(config: &crate::RunConfig) -> anyhow::Result<Vec<EpochSplit>> {
     impl crate::trainer::Observer for Silent {
         fn epoch(&mut self, _: &crate::progress::ProgressRow, _: usize) {}
     }
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
     let dir = std::env::temp_dir().join(format!("apo-bench-epoch-{}-{nanos}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let stop = AtomicBool::new(false);
     let trained = match config.backend {
-        crate::BackendKind::Cpu => crate::trainer::train::<burn::backend::NdArray>(config, &dir, &Default::default(), false, &stop, &mut Silent),
-        crate::BackendKind::Wgpu => crate::trainer::train::<burn::backend::Wgpu>(config, &dir, &Default::default(), false, &stop, &mut Silent),
+        crate::BackendKind::Cpu => crate::trainer::train::<burn::backend::NdArray>(
+            config,
+            &dir,
+            &Default::default(),
+            false,
+            &stop,
+            &mut Silent,
+        ),
+        crate::BackendKind::Wgpu => crate::trainer::train::<burn::backend::Wgpu>(
+            config,
+            &dir,
+            &Default::default(),
+            false,
+            &stop,
+            &mut Silent,
+        ),
     };
     let rows = trained.and_then(|_| crate::progress::read(&dir.join(crate::run_dir::PROGRESS)));
     let _ = std::fs::remove_dir_all(&dir);

@@ -58,7 +58,13 @@ pub struct TrainState {
 impl TrainState {
     /// The state of a run that has not completed an epoch.
     pub fn new(normalizer: Option<RunningMeanStd>) -> Self {
-        Self { format: FORMAT, epoch: 0, env_steps: 0, elapsed_s: 0.0, normalizer }
+        Self {
+            format: FORMAT,
+            epoch: 0,
+            env_steps: 0,
+            elapsed_s: 0.0,
+            normalizer,
+        }
     }
 }
 
@@ -106,7 +112,10 @@ struct Manifest {
 
 fn file_sum(path: &Path) -> anyhow::Result<FileSum> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    Ok(FileSum { bytes: bytes.len() as u64, crc32c: format!("{:08x}", crc32c::crc32c(&bytes)) })
+    Ok(FileSum {
+        bytes: bytes.len() as u64,
+        crc32c: format!("{:08x}", crc32c::crc32c(&bytes)),
+    })
 }
 
 type Rec = NamedMpkFileRecorder<FullPrecisionSettings>;
@@ -171,7 +180,8 @@ pub fn save<B: Backend>(
     let root = dir(run);
     std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
     let tmp = root.join(format!(".tmp-{}", state.epoch));
-    write_into(&tmp, learner, state, shapes).with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
+    write_into(&tmp, learner, state, shapes)
+        .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
 
     let (latest, previous) = (root.join("latest"), root.join("previous"));
     if previous.exists() {
@@ -212,19 +222,45 @@ fn write_into<B: Backend>(
     let (policy, value) = learner.networks();
     let (policy_optim, value_optim) = learner.optimizers();
     let rec = recorder();
-    policy.clone().save_file(tmp.join("policy"), &rec).context("saving the policy")?;
-    value.clone().save_file(tmp.join("value"), &rec).context("saving the value network")?;
-    rec.record(policy_optim.to_record(), tmp.join("policy_optim")).context("saving the policy optimizer")?;
-    rec.record(value_optim.to_record(), tmp.join("value_optim")).context("saving the value optimizer")?;
-    atomic::write(&tmp.join(STATE), serde_json::to_string_pretty(&TrainState { format: FORMAT, ..state.clone() })?.as_bytes())?;
+    policy
+        .clone()
+        .save_file(tmp.join("policy"), &rec)
+        .context("saving the policy")?;
+    value
+        .clone()
+        .save_file(tmp.join("value"), &rec)
+        .context("saving the value network")?;
+    rec.record(policy_optim.to_record(), tmp.join("policy_optim"))
+        .context("saving the policy optimizer")?;
+    rec.record(value_optim.to_record(), tmp.join("value_optim"))
+        .context("saving the value optimizer")?;
+    atomic::write(
+        &tmp.join(STATE),
+        serde_json::to_string_pretty(&TrainState {
+            format: FORMAT,
+            ..state.clone()
+        })?
+        .as_bytes(),
+    )?;
     let mut files = BTreeMap::new();
-    for name in RECORDS.iter().map(|r| format!("{r}.mpk")).chain([STATE.to_string()]) {
+    for name in RECORDS
+        .iter()
+        .map(|r| format!("{r}.mpk"))
+        .chain([STATE.to_string()])
+    {
         let path = tmp.join(&name);
         atomic::sync_file(&path)?;
         files.insert(name, file_sum(&path)?);
     }
-    let manifest = Manifest { format: FORMAT, shapes: shapes.clone(), files };
-    atomic::write(&tmp.join(MANIFEST), serde_json::to_string_pretty(&manifest)?.as_bytes())?;
+    let manifest = Manifest {
+        format: FORMAT,
+        shapes: shapes.clone(),
+        files,
+    };
+    atomic::write(
+        &tmp.join(MANIFEST),
+        serde_json::to_string_pretty(&manifest)?.as_bytes(),
+    )?;
     Ok(())
 }
 
@@ -232,7 +268,9 @@ fn write_into<B: Backend>(
 pub fn locate(run: &Path, which: &Which) -> anyhow::Result<Option<PathBuf>> {
     let root = dir(run);
     match which {
-        Which::Latest => Ok([root.join("latest"), root.join("previous")].into_iter().find(|d| d.is_dir())),
+        Which::Latest => Ok([root.join("latest"), root.join("previous")]
+            .into_iter()
+            .find(|d| d.is_dir())),
         Which::Epoch(epoch) => {
             let path = root.join(kept_name(*epoch));
             if path.is_dir() {
@@ -242,7 +280,11 @@ pub fn locate(run: &Path, which: &Which) -> anyhow::Result<Option<PathBuf>> {
             bail!(
                 "{} has no checkpoint of epoch {epoch} (kept: {})",
                 run.display(),
-                if kept.is_empty() { "none; set keep_checkpoint_every to keep some".to_string() } else { format!("{kept:?}") }
+                if kept.is_empty() {
+                    "none; set keep_checkpoint_every to keep some".to_string()
+                } else {
+                    format!("{kept:?}")
+                }
             )
         }
     }
@@ -257,17 +299,27 @@ pub fn load<B: Backend>(
     device: &B::Device,
 ) -> anyhow::Result<TrainState> {
     let state_path = from.join(STATE);
-    let text = std::fs::read_to_string(&state_path).with_context(|| format!("cannot read {}", state_path.display()))?;
+    let text = std::fs::read_to_string(&state_path)
+        .with_context(|| format!("cannot read {}", state_path.display()))?;
     let manifest_path = from.join(MANIFEST);
     if manifest_path.exists() {
         verify(from, shapes)?;
     }
-    let state: TrainState = serde_json::from_str(&text)
-        .with_context(|| format!("{} is corrupt or not a checkpoint state", state_path.display()))?;
+    let state: TrainState = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{} is corrupt or not a checkpoint state",
+            state_path.display()
+        )
+    })?;
     match state.format {
         FORMAT => {}
-        1 => tracing::warn!(checkpoint = %from.display(), "format-1 checkpoint without checksums; loading it unverified"),
-        other => bail!("{} has checkpoint format {other}; this version reads 1 and {FORMAT}", state_path.display()),
+        1 => {
+            tracing::warn!(checkpoint = %from.display(), "format-1 checkpoint without checksums; loading it unverified")
+        }
+        other => bail!(
+            "{} has checkpoint format {other}; this version reads 1 and {FORMAT}",
+            state_path.display()
+        ),
     }
     match (&state.normalizer, shapes.normalize_obs) {
         (Some(n), true) if n.dim() == shapes.observation_dim => {}
@@ -288,17 +340,42 @@ pub fn load<B: Backend>(
     let rec = recorder();
     let (policy, value) = learner.networks();
     let (policy_optim, value_optim) = learner.optimizers();
-    let (policy, value, policy_optim, value_optim) = (policy.clone(), value.clone(), policy_optim.clone(), value_optim.clone());
+    let (policy, value, policy_optim, value_optim) = (
+        policy.clone(),
+        value.clone(),
+        policy_optim.clone(),
+        value_optim.clone(),
+    );
     let loaded = no_panic(|| -> anyhow::Result<_> {
         let file = |name: &str| from.join(name);
-        let corrupt = |name: &str| format!("{} is corrupt or from an incompatible run", file(&format!("{name}.mpk")).display());
-        let policy = policy.load_file(file("policy"), &rec, device).with_context(|| corrupt("policy"))?;
-        let value = value.load_file(file("value"), &rec, device).with_context(|| corrupt("value"))?;
-        let policy_optim = policy_optim.load_record(rec.load(file("policy_optim"), device).with_context(|| corrupt("policy_optim"))?);
-        let value_optim = value_optim.load_record(rec.load(file("value_optim"), device).with_context(|| corrupt("value_optim"))?);
+        let corrupt = |name: &str| {
+            format!(
+                "{} is corrupt or from an incompatible run",
+                file(&format!("{name}.mpk")).display()
+            )
+        };
+        let policy = policy
+            .load_file(file("policy"), &rec, device)
+            .with_context(|| corrupt("policy"))?;
+        let value = value
+            .load_file(file("value"), &rec, device)
+            .with_context(|| corrupt("value"))?;
+        let policy_optim = policy_optim.load_record(
+            rec.load(file("policy_optim"), device)
+                .with_context(|| corrupt("policy_optim"))?,
+        );
+        let value_optim = value_optim.load_record(
+            rec.load(file("value_optim"), device)
+                .with_context(|| corrupt("value_optim"))?,
+        );
         Ok((policy, value, policy_optim, value_optim))
     })
-    .with_context(|| format!("the checkpoint in {} is corrupt or from an incompatible run", from.display()))??;
+    .with_context(|| {
+        format!(
+            "the checkpoint in {} is corrupt or from an incompatible run",
+            from.display()
+        )
+    })??;
     let (policy, value, policy_optim, value_optim) = loaded;
     // A record of other sizes loads silently in some Burn versions: check the sizes too.
     let expected = learner.family().init::<Autodiff<B>>(device).num_params();
@@ -316,13 +393,21 @@ pub fn load<B: Backend>(
 /// Checks every file of checkpoint `from` against its manifest, and the shapes.
 fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
     let path = from.join(MANIFEST);
-    let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
-    let manifest: Manifest =
-        serde_json::from_str(&text).with_context(|| format!("{} is corrupt (not a checkpoint manifest)", path.display()))?;
-    for name in RECORDS.iter().map(|r| format!("{r}.mpk")).chain([STATE.to_string()]) {
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let manifest: Manifest = serde_json::from_str(&text)
+        .with_context(|| format!("{} is corrupt (not a checkpoint manifest)", path.display()))?;
+    for name in RECORDS
+        .iter()
+        .map(|r| format!("{r}.mpk"))
+        .chain([STATE.to_string()])
+    {
         let file = from.join(&name);
         let Some(expected) = manifest.files.get(&name) else {
-            bail!("{} does not list {name}; the checkpoint is corrupt", path.display());
+            bail!(
+                "{} does not list {name}; the checkpoint is corrupt",
+                path.display()
+            );
         };
         if !file.exists() {
             bail!("{} is missing from the checkpoint", file.display());

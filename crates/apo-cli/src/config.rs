@@ -127,19 +127,31 @@ impl RunConfig {
 
     /// Builds a configuration: defaults for `algo`, then the TOML `file` if any, then
     /// each `key=value` of `sets` (values in TOML syntax; a bare word is taken as a string).
-    pub fn build(algo: Algorithm, env: &str, file: Option<&Path>, sets: &[String]) -> Result<Self, ConfigFileError> {
+    pub fn build(
+        algo: Algorithm,
+        env: &str,
+        file: Option<&Path>,
+        sets: &[String],
+    ) -> Result<Self, ConfigFileError> {
         let mut doc = to_table(&Self::defaults(algo, env));
         let chosen = toml::Value::String(algo.name().to_string());
         if let Some(path) = file {
-            let text = std::fs::read_to_string(path)
-                .map_err(|source| ConfigFileError::Read { path: path.display().to_string(), source })?;
-            let layer: toml::Table = text
-                .parse()
-                .map_err(|e: toml::de::Error| ConfigFileError::Parse { origin: path.display().to_string(), message: e.to_string() })?;
+            let text = std::fs::read_to_string(path).map_err(|source| ConfigFileError::Read {
+                path: path.display().to_string(),
+                source,
+            })?;
+            let layer: toml::Table =
+                text.parse()
+                    .map_err(|e: toml::de::Error| ConfigFileError::Parse {
+                        origin: path.display().to_string(),
+                        message: e.to_string(),
+                    })?;
             merge(&mut doc, layer, "")?;
         }
         for set in sets {
-            let (key, value) = set.split_once('=').ok_or_else(|| ConfigFileError::BadSet(set.clone()))?;
+            let (key, value) = set
+                .split_once('=')
+                .ok_or_else(|| ConfigFileError::BadSet(set.clone()))?;
             set_path(&mut doc, key.trim(), parse_value(value.trim()))?;
         }
         // the algorithm chosen on the command line wins over a file's
@@ -151,11 +163,16 @@ impl RunConfig {
 
     /// Reads a configuration written by a run (`config.toml`), checking every key.
     pub fn load(path: &Path) -> Result<Self, ConfigFileError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ConfigFileError::Read { path: path.display().to_string(), source })?;
-        let table: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| ConfigFileError::Parse { origin: path.display().to_string(), message: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigFileError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let table: toml::Table =
+            text.parse()
+                .map_err(|e: toml::de::Error| ConfigFileError::Parse {
+                    origin: path.display().to_string(),
+                    message: e.to_string(),
+                })?;
         let mut doc = to_table(&Self::defaults(Algorithm::Apo, ""));
         merge(&mut doc, table, "")?;
         let config = Self::from_table(doc)?;
@@ -164,16 +181,22 @@ impl RunConfig {
     }
 
     fn from_table(doc: toml::Table) -> Result<Self, ConfigFileError> {
-        serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(|e| ConfigFileError::Type {
-            key: e.path().to_string(),
-            message: e.into_inner().to_string(),
+        serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(|e| {
+            ConfigFileError::Type {
+                key: e.path().to_string(),
+                message: e.into_inner().to_string(),
+            }
         })
     }
 
     /// Checks the ranges of every field.
     pub fn validate(&self) -> Result<(), apo_core::ConfigError> {
         let fail = |field: &str, value: String, rule: &str| {
-            Err(apo_core::ConfigError { field: field.into(), value, rule: rule.into() })
+            Err(apo_core::ConfigError {
+                field: field.into(),
+                value,
+                rule: rule.into(),
+            })
         };
         if self.epochs == 0 {
             return fail("epochs", self.epochs.to_string(), "must be ≥ 1");
@@ -182,22 +205,46 @@ impl RunConfig {
             return fail("num_envs", self.num_envs.to_string(), "must be ≥ 1");
         }
         if self.num_envs > MAX_NUM_ENVS {
-            return fail("num_envs", self.num_envs.to_string(), &format!("must be ≤ {MAX_NUM_ENVS}"));
+            return fail(
+                "num_envs",
+                self.num_envs.to_string(),
+                &format!("must be ≤ {MAX_NUM_ENVS}"),
+            );
         }
         if self.steps_per_epoch < self.num_envs {
-            return fail("steps_per_epoch", self.steps_per_epoch.to_string(), "must be ≥ num_envs");
+            return fail(
+                "steps_per_epoch",
+                self.steps_per_epoch.to_string(),
+                "must be ≥ num_envs",
+            );
         }
         if self.checkpoint_every == 0 {
-            return fail("checkpoint_every", self.checkpoint_every.to_string(), "must be ≥ 1");
+            return fail(
+                "checkpoint_every",
+                self.checkpoint_every.to_string(),
+                "must be ≥ 1",
+            );
         }
         if self.hidden.is_empty() || self.hidden.contains(&0) {
-            return fail("hidden", format!("{:?}", self.hidden), "must be a non-empty list of positive sizes");
+            return fail(
+                "hidden",
+                format!("{:?}", self.hidden),
+                "must be a non-empty list of positive sizes",
+            );
         }
         if !(-20.0..=2.0).contains(&self.init_log_std) {
-            return fail("init_log_std", self.init_log_std.to_string(), "must be in [-20, 2]");
+            return fail(
+                "init_log_std",
+                self.init_log_std.to_string(),
+                "must be in [-20, 2]",
+            );
         }
         if self.steps_per_epoch > MAX_STEPS_PER_EPOCH {
-            return fail("steps_per_epoch", self.steps_per_epoch.to_string(), &format!("must be ≤ {MAX_STEPS_PER_EPOCH}"));
+            return fail(
+                "steps_per_epoch",
+                self.steps_per_epoch.to_string(),
+                &format!("must be ≤ {MAX_STEPS_PER_EPOCH}"),
+            );
         }
         if self.hidden.len() > MAX_LAYERS || self.hidden.iter().any(|&h| h > MAX_WIDTH) {
             return fail(
@@ -207,15 +254,29 @@ impl RunConfig {
             );
         }
         if self.seed > i64::MAX as u64 {
-            return fail("seed", self.seed.to_string(), &format!("must be in 0..={} (TOML integers are signed 64-bit)", i64::MAX));
+            return fail(
+                "seed",
+                self.seed.to_string(),
+                &format!(
+                    "must be in 0..={} (TOML integers are signed 64-bit)",
+                    i64::MAX
+                ),
+            );
         }
-        self.algo.validate().map_err(|e| apo_core::ConfigError { field: format!("algo.{}", e.field), ..e })
+        self.algo.validate().map_err(|e| apo_core::ConfigError {
+            field: format!("algo.{}", e.field),
+            ..e
+        })
     }
 
     /// Checks that a run of this configuration on an environment with `observation_dim`
     /// observations and `action` fits in this machine's memory ([`memory_estimate`]), before
     /// anything is allocated or created; the error names the keys that size it.
-    pub fn check_memory(&self, observation_dim: usize, action: ActionKind) -> Result<(), apo_core::ConfigError> {
+    pub fn check_memory(
+        &self,
+        observation_dim: usize,
+        action: ActionKind,
+    ) -> Result<(), apo_core::ConfigError> {
         let need = memory_estimate(self, observation_dim, action);
         let have = physical_memory().unwrap_or(MEMORY_WITHOUT_PROC);
         if need > have as f64 {
@@ -234,7 +295,8 @@ impl RunConfig {
 
     /// The configuration as TOML text.
     pub fn to_toml(&self) -> String {
-        toml::to_string_pretty(self).unwrap_or_else(|e| format!("# could not serialize the config: {e}\n"))
+        toml::to_string_pretty(self)
+            .unwrap_or_else(|e| format!("# could not serialize the config: {e}\n"))
     }
 }
 
@@ -281,7 +343,10 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
 ];
 
 fn key_doc(key: &str) -> &'static str {
-    KEY_DOCS.iter().find(|(k, _)| *k == key).map_or("", |(_, d)| d)
+    KEY_DOCS
+        .iter()
+        .find(|(k, _)| *k == key)
+        .map_or("", |(_, d)| d)
 }
 
 impl RunConfig {
@@ -296,11 +361,20 @@ impl RunConfig {
 
 fn write_documented(table: &toml::Table, prefix: &str, out: &mut String) {
     use std::fmt::Write as _;
-    let dotted = |k: &str| if prefix.is_empty() { k.to_string() } else { format!("{prefix}.{k}") };
+    let dotted = |k: &str| {
+        if prefix.is_empty() {
+            k.to_string()
+        } else {
+            format!("{prefix}.{k}")
+        }
+    };
     for (k, v) in table.iter().filter(|(_, v)| !v.is_table()) {
         let _ = writeln!(out, "# {}\n{k} = {v}", key_doc(&dotted(k)));
     }
-    for optional in OPTIONAL_KEYS.iter().filter_map(|o| o.strip_prefix(&format!("{prefix}."))) {
+    for optional in OPTIONAL_KEYS
+        .iter()
+        .filter_map(|o| o.strip_prefix(&format!("{prefix}.")))
+    {
         if !optional.contains('.') && !table.contains_key(optional) {
             let _ = writeln!(out, "# {}\n# {optional} =", key_doc(&dotted(optional)));
         }
@@ -344,10 +418,13 @@ pub fn memory_estimate(config: &RunConfig, observation_dim: usize, action: Actio
         sizes.windows(2).map(|w| w[0] * w[1] + w[1]).sum::<f64>()
     };
     let params = layers(dist) + layers(1.0);
-    let samples = config.steps_per_epoch.div_ceil(config.num_envs.max(1)) as f64 * config.num_envs as f64;
+    let samples =
+        config.steps_per_epoch.div_ceil(config.num_envs.max(1)) as f64 * config.num_envs as f64;
     let transition = (observation_dim as f64 + action.width() as f64 + dist + 5.0) * 4.0 * 3.0;
     let activations = config.hidden.iter().sum::<usize>() as f64 * 48.0;
-    params * 128.0 + samples * (transition + activations) + config.num_envs as f64 * (1u64 << 20) as f64
+    params * 128.0
+        + samples * (transition + activations)
+        + config.num_envs as f64 * (1u64 << 20) as f64
 }
 
 /// This machine's physical memory in bytes (`MemTotal` of `/proc/meminfo`).
@@ -376,7 +453,11 @@ const OPTIONAL_KEYS: &[&str] = &[
 /// All dotted keys of `table`, for suggestions.
 fn all_keys(table: &toml::Table, prefix: &str, out: &mut Vec<String>) {
     for (k, v) in table {
-        let key = if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") };
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
         if let toml::Value::Table(t) = v {
             all_keys(t, &key, out);
         }
@@ -393,7 +474,10 @@ fn unknown(key: &str, doc_keys: &[String]) -> ConfigFileError {
         .filter(|(score, _)| *score > 0.8)
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, k)| k.to_string());
-    ConfigFileError::UnknownKey { key: key.to_string(), suggestion }
+    ConfigFileError::UnknownKey {
+        key: key.to_string(),
+        suggestion,
+    }
 }
 
 /// Merges `layer` into `base`, rejecting keys `base` does not have.
@@ -401,7 +485,11 @@ fn merge(base: &mut toml::Table, layer: toml::Table, prefix: &str) -> Result<(),
     let mut keys = Vec::new();
     all_keys(base, prefix, &mut keys);
     for (k, v) in layer {
-        let key = if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") };
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
         match (base.get_mut(&k), v) {
             (Some(toml::Value::Table(b)), toml::Value::Table(t)) => merge(b, t, &key)?,
             (Some(slot), v) => *slot = v,
@@ -418,10 +506,15 @@ fn merge(base: &mut toml::Table, layer: toml::Table, prefix: &str) -> Result<(),
 fn set_path(doc: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), ConfigFileError> {
     let mut layer = toml::Table::new();
     let parts: Vec<&str> = key.split('.').collect();
-    let (last, parents) = parts.split_last().ok_or_else(|| ConfigFileError::BadSet(key.to_string()))?;
+    let (last, parents) = parts
+        .split_last()
+        .ok_or_else(|| ConfigFileError::BadSet(key.to_string()))?;
     let mut cursor = &mut layer;
     for p in parents {
-        cursor = match cursor.entry(p.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new())) {
+        cursor = match cursor
+            .entry(p.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+        {
             toml::Value::Table(t) => t,
             _ => return Err(ConfigFileError::BadSet(key.to_string())),
         };
@@ -445,23 +538,45 @@ mod tests {
 
     #[test]
     fn sets_override_defaults_and_unknown_keys_are_named() {
-        let sets = vec!["algo.gamma=0.95".to_string(), "hidden=[32, 16]".to_string(), "env=CartPole-v1".into()];
+        let sets = vec![
+            "algo.gamma=0.95".to_string(),
+            "hidden=[32, 16]".to_string(),
+            "env=CartPole-v1".into(),
+        ];
         let c = RunConfig::build(Algorithm::Ppo, "Pendulum-v1", None, &sets).expect("valid");
         assert_eq!(c.algo.gamma, 0.95);
         assert_eq!(c.hidden, vec![32, 16]);
         assert_eq!(c.env, "CartPole-v1");
 
-        let err = RunConfig::build(Algorithm::Apo, "x", None, &["algo.gama=0.9".into()]).unwrap_err();
-        assert_eq!(err.to_string(), "unknown config key `algo.gama`; did you mean `algo.gamma`?");
+        let err =
+            RunConfig::build(Algorithm::Apo, "x", None, &["algo.gama=0.9".into()]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "unknown config key `algo.gama`; did you mean `algo.gamma`?"
+        );
 
-        let err = RunConfig::build(Algorithm::Apo, "x", None, &["algo.k=\"seven\"".into()]).unwrap_err();
-        assert!(err.to_string().starts_with("config key `algo.k`: invalid type"), "{err}");
+        let err =
+            RunConfig::build(Algorithm::Apo, "x", None, &["algo.k=\"seven\"".into()]).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("config key `algo.k`: invalid type"),
+            "{err}"
+        );
 
-        let err = RunConfig::build(Algorithm::Apo, "x", None, &["algo.gamma=1.0".into()]).unwrap_err();
-        assert_eq!(err.to_string(), "invalid `algo.gamma` = 1: must be in [0, 1)");
+        let err =
+            RunConfig::build(Algorithm::Apo, "x", None, &["algo.gamma=1.0".into()]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "invalid `algo.gamma` = 1: must be in [0, 1)"
+        );
 
-        let c = RunConfig::build(Algorithm::Ppo, "x", None, &["algo.policy_update.minibatch_size=64".into()])
-            .expect("optional key");
+        let c = RunConfig::build(
+            Algorithm::Ppo,
+            "x",
+            None,
+            &["algo.policy_update.minibatch_size=64".into()],
+        )
+        .expect("optional key");
         assert_eq!(c.algo.policy_update.minibatch_size, Some(64));
     }
 
@@ -470,7 +585,8 @@ mod tests {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
         for algo in Algorithm::ALL {
             let file = dir.join(format!("{algo}.toml"));
-            let c = RunConfig::build(algo, "x", Some(&file), &[]).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+            let c = RunConfig::build(algo, "x", Some(&file), &[])
+                .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
             assert_eq!(c, RunConfig::defaults(algo, "x"), "{}", file.display());
         }
     }
@@ -483,36 +599,78 @@ mod tests {
         all_keys(&to_table(&c), "", &mut keys);
         keys.extend(OPTIONAL_KEYS.iter().map(|k| k.to_string()));
         for key in &keys {
-            assert!(!key_doc(key).is_empty(), "config key `{key}` has no entry in KEY_DOCS");
+            assert!(
+                !key_doc(key).is_empty(),
+                "config key `{key}` has no entry in KEY_DOCS"
+            );
         }
         for (key, _) in KEY_DOCS {
-            assert!(keys.iter().any(|k| k == key), "KEY_DOCS documents `{key}`, which is not a config key");
+            assert!(
+                keys.iter().any(|k| k == key),
+                "KEY_DOCS documents `{key}`, which is not a config key"
+            );
         }
         let text = c.documented_toml();
-        assert!(text.contains("# discount factor γ; [0, 1)\ngamma = 0.99"), "{text}");
-        assert!(text.contains("# algo.policy_update.target_kl") || text.contains("target_kl = 0.02"), "{text}");
-        assert!(text.contains("# minibatch_size =\n"), "unset optional keys appear commented out: {text}");
+        assert!(
+            text.contains("# discount factor γ; [0, 1)\ngamma = 0.99"),
+            "{text}"
+        );
+        assert!(
+            text.contains("# algo.policy_update.target_kl") || text.contains("target_kl = 0.02"),
+            "{text}"
+        );
+        assert!(
+            text.contains("# minibatch_size =\n"),
+            "unset optional keys appear commented out: {text}"
+        );
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("documented.toml");
         std::fs::write(&path, &text).expect("write");
-        assert_eq!(RunConfig::load(&path).expect("the documented config loads"), c);
+        assert_eq!(
+            RunConfig::load(&path).expect("the documented config loads"),
+            c
+        );
     }
 
     #[test]
     fn sizes_are_bounded_and_memory_is_estimated_before_allocating() {
-        let err = RunConfig::build(Algorithm::Apo, "x", None, &["steps_per_epoch=1000000000000".into()]).unwrap_err();
-        assert!(err.to_string().starts_with("invalid `steps_per_epoch` = 1000000000000: must be ≤"), "{err}");
-        let err = RunConfig::build(Algorithm::Apo, "x", None, &["hidden=[1000000000]".into()]).unwrap_err();
+        let err = RunConfig::build(
+            Algorithm::Apo,
+            "x",
+            None,
+            &["steps_per_epoch=1000000000000".into()],
+        )
+        .unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("invalid `steps_per_epoch` = 1000000000000: must be ≤"),
+            "{err}"
+        );
+        let err = RunConfig::build(Algorithm::Apo, "x", None, &["hidden=[1000000000]".into()])
+            .unwrap_err();
         assert!(err.to_string().contains("`hidden`"), "{err}");
-        let err = RunConfig::build(Algorithm::Apo, "x", None, &["init_log_std=1e30".into()]).unwrap_err();
-        assert!(err.to_string().contains("`init_log_std` = 1000000000000000000000000000000"), "{err}");
+        let err =
+            RunConfig::build(Algorithm::Apo, "x", None, &["init_log_std=1e30".into()]).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("`init_log_std` = 1000000000000000000000000000000"),
+            "{err}"
+        );
         let action = ActionKind::Continuous { dim: 3 };
         let paper = RunConfig::defaults(Algorithm::Apo, "Hopper");
         // the paper's Hopper run: ~10 k parameters, 30 000 samples of 11 + 3 + 6 floats
         let estimate = memory_estimate(&paper, 11, action);
-        assert!(estimate > 30_000.0 * 128.0 * 48.0 && estimate < 1e9, "{estimate}");
-        paper.check_memory(11, action).expect("the paper's Hopper run fits");
-        let wide = RunConfig { hidden: vec![1 << 20, 1 << 20], ..paper };
+        assert!(
+            estimate > 30_000.0 * 128.0 * 48.0 && estimate < 1e9,
+            "{estimate}"
+        );
+        paper
+            .check_memory(11, action)
+            .expect("the paper's Hopper run fits");
+        let wide = RunConfig {
+            hidden: vec![1 << 20, 1 << 20],
+            ..paper
+        };
         let err = wide.check_memory(11, action).unwrap_err();
         assert!(err.to_string().contains("GiB of memory"), "{err}");
     }

@@ -40,16 +40,34 @@ pub fn evaluate(
     let action = action_kind(env.action_space());
     let (policy_cfg, value_cfg) = networks(&config, obs_dim, action);
     let device = Default::default();
-    let mut learner = Learner::<NdArray, _>::new(policy_cfg, action, &value_cfg, config.algo.clone(), &device, 0)?;
+    let mut learner = Learner::<NdArray, _>::new(
+        policy_cfg,
+        action,
+        &value_cfg,
+        config.algo.clone(),
+        &device,
+        0,
+    )?;
     let from = checkpoint::locate(run_dir, which)?.with_context(|| {
-        format!("{} has no checkpoint yet: the run has not completed an epoch", run_dir.display())
+        format!(
+            "{} has no checkpoint yet: the run has not completed an epoch",
+            run_dir.display()
+        )
     })?;
-    let state = checkpoint::load(&from, &mut learner, &shapes(&config, obs_dim, action), &device)?;
+    let state = checkpoint::load(
+        &from,
+        &mut learner,
+        &shapes(&config, obs_dim, action),
+        &device,
+    )?;
     let mut policy = HostPolicy::new(&learner.policy_on::<NdArray>(&device), action);
     let mut rng = StdRng::seed_from_u64(seed);
     let mut obs = vec![0.0f32; obs_dim];
     let mut act = ActBuffers::default();
-    let mut result = EvalResult { returns: vec![], lengths: vec![] };
+    let mut result = EvalResult {
+        returns: vec![],
+        lengths: vec![],
+    };
     for episode in 0..episodes {
         env.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
         let (mut ret, mut len) = (0.0, 0);
@@ -59,7 +77,9 @@ pub fn evaluate(
             }
             policy.act(&obs, 1, deterministic, &mut rng, &mut act);
             let t = match env.action_space() {
-                Space::Discrete { .. } => env.step(Action::Discrete(act.env_actions[0] as usize), &mut obs),
+                Space::Discrete { .. } => {
+                    env.step(Action::Discrete(act.env_actions[0] as usize), &mut obs)
+                }
                 Space::Box { .. } => env.step(Action::Continuous(&act.env_actions), &mut obs),
             };
             ret += t.reward;

@@ -20,7 +20,11 @@ const CONFIG_HELP: &str = "Defaults are the paper's (configs/<algo>.toml spells 
 meaning, default and range: `apo config --algo <ALGO>`; set any key with --set key=value or a --config file.";
 
 #[derive(Parser)]
-#[command(name = "apo", version, about = "Absolute Policy Optimization and baselines on Burn")]
+#[command(
+    name = "apo",
+    version,
+    about = "Absolute Policy Optimization and baselines on Burn"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -223,7 +227,10 @@ fn parse_algo(s: &str) -> Result<Algorithm, String> {
             .filter(|(score, _)| *score > 0.7)
             .map(|(_, n)| format!("; did you mean `{n}`?"))
             .unwrap_or_default();
-        format!("unknown algorithm `{s}`{best} (known: {})", names.join(", "))
+        format!(
+            "unknown algorithm `{s}`{best} (known: {})",
+            names.join(", ")
+        )
     })
 }
 
@@ -237,15 +244,30 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Train(args) => train(args),
         Command::List => list().map(|()| ExitCode::SUCCESS),
-        Command::Eval { run, episodes, deterministic, seed, checkpoint } => {
-            eval(&run, &checkpoint, episodes as usize, deterministic, seed).map(|()| ExitCode::SUCCESS)
-        }
-        Command::Config { algo, env, config, sets, run } => print_config(algo, env, config, &sets, run).map(|()| ExitCode::SUCCESS),
-        Command::Plot { runs, out, smooth } => apo_cli::plot::plot(&runs, &out, &apo_cli::plot::PlotOptions { smooth })
-            .map(|()| println!("wrote {}", out.display()))
+        Command::Eval {
+            run,
+            episodes,
+            deterministic,
+            seed,
+            checkpoint,
+        } => eval(&run, &checkpoint, episodes as usize, deterministic, seed)
             .map(|()| ExitCode::SUCCESS),
+        Command::Config {
+            algo,
+            env,
+            config,
+            sets,
+            run,
+        } => print_config(algo, env, config, &sets, run).map(|()| ExitCode::SUCCESS),
+        Command::Plot { runs, out, smooth } => {
+            apo_cli::plot::plot(&runs, &out, &apo_cli::plot::PlotOptions { smooth })
+                .map(|()| println!("wrote {}", out.display()))
+                .map(|()| ExitCode::SUCCESS)
+        }
         Command::Bench(command) => bench(command).map(|()| ExitCode::SUCCESS),
-        Command::Summary { runs, last, csv } => summary(&runs, last as usize, csv).map(|()| ExitCode::SUCCESS),
+        Command::Summary { runs, last, csv } => {
+            summary(&runs, last as usize, csv).map(|()| ExitCode::SUCCESS)
+        }
     };
     result.unwrap_or_else(|e| {
         eprintln!("error: {e:#}");
@@ -253,7 +275,13 @@ fn main() -> ExitCode {
     })
 }
 
-fn eval(run: &Path, which: &Which, episodes: usize, deterministic: bool, seed: u64) -> anyhow::Result<()> {
+fn eval(
+    run: &Path,
+    which: &Which,
+    episodes: usize,
+    deterministic: bool,
+    seed: u64,
+) -> anyhow::Result<()> {
     let (result, epoch) = apo_cli::eval::evaluate(run, which, episodes, deterministic, seed)?;
     let stats = apo_core::EpisodeStats::from_episodes(&result.returns, &result.lengths, 0.0)
         .context("no episode was run")?;
@@ -267,7 +295,12 @@ fn eval(run: &Path, which: &Which, episodes: usize, deterministic: bool, seed: u
 fn summary(runs: &[PathBuf], last: usize, csv: bool) -> anyhow::Result<()> {
     let rows = runs
         .iter()
-        .map(|run| Ok((run.display().to_string(), apo_cli::summary::summarize(run, last)?)))
+        .map(|run| {
+            Ok((
+                run.display().to_string(),
+                apo_cli::summary::summarize(run, last)?,
+            ))
+        })
         .collect::<anyhow::Result<Vec<_>>>()?;
     if csv {
         print!("{}", apo_cli::summary::csv(&rows, last)?);
@@ -285,7 +318,8 @@ fn print_config(
     run: Option<PathBuf>,
 ) -> anyhow::Result<()> {
     let config = match run {
-        Some(run) => RunConfig::load(&run.join(run_dir::CONFIG)).with_context(|| format!("{} is not a run directory", run.display()))?,
+        Some(run) => RunConfig::load(&run.join(run_dir::CONFIG))
+            .with_context(|| format!("{} is not a run directory", run.display()))?,
         None => {
             if let Some(env) = &env {
                 apo_envs::registry::spec(env)?;
@@ -299,25 +333,59 @@ fn print_config(
 
 fn bench(command: BenchCommand) -> anyhow::Result<()> {
     match command {
-        BenchCommand::Update { backend, batch, obs, act, repeats } => {
-            let (batch, obs, act, repeats) = (batch as usize, obs as usize, act as usize, repeats as usize);
-            let sized = RunConfig { steps_per_epoch: batch, ..RunConfig::defaults(Algorithm::Apo, "") };
-            sized.check_memory(obs, apo_core::ActionKind::Continuous { dim: act }).context("apo bench update --batch/--obs/--act")?;
+        BenchCommand::Update {
+            backend,
+            batch,
+            obs,
+            act,
+            repeats,
+        } => {
+            let (batch, obs, act, repeats) =
+                (batch as usize, obs as usize, act as usize, repeats as usize);
+            let sized = RunConfig {
+                steps_per_epoch: batch,
+                ..RunConfig::defaults(Algorithm::Apo, "")
+            };
+            sized
+                .check_memory(obs, apo_core::ActionKind::Continuous { dim: act })
+                .context("apo bench update --batch/--obs/--act")?;
             let t = match backend {
-                BackendKind::Cpu => apo_cli::bench::update::<burn::backend::NdArray>(&Default::default(), batch, obs, act, repeats),
+                BackendKind::Cpu => apo_cli::bench::update::<burn::backend::NdArray>(
+                    &Default::default(),
+                    batch,
+                    obs,
+                    act,
+                    repeats,
+                ),
                 BackendKind::Wgpu => {
                     quiet_wgpu();
-                    apo_cli::bench::update::<burn::backend::Wgpu>(&Default::default(), batch, obs, act, repeats)
+                    apo_cli::bench::update::<burn::backend::Wgpu>(
+                        &Default::default(),
+                        batch,
+                        obs,
+                        act,
+                        repeats,
+                    )
                 }
             };
-            println!("backend={backend} batch={batch} obs={obs} act={act} params={} repeats={repeats}", t.params);
+            println!(
+                "backend={backend} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
+                t.params
+            );
             println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries.0);
             println!("apo_update_s={:.4} ({})", t.apo_s, t.tries.1);
             println!("hvp_s={:.5}", t.hvp_s);
             println!("fvp_s={:.5}", t.fvp_s);
             println!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s);
         }
-        BenchCommand::Epoch { algo, env, steps_per_epoch, epochs, num_envs, backend } => {
+        BenchCommand::Epoch {
+            algo,
+            env,
+            steps_per_epoch,
+            epochs,
+            num_envs,
+            backend,
+        } => {
             let spec = apo_envs::registry::spec(&env)?;
             let config = RunConfig {
                 env: env.clone(),
@@ -329,7 +397,10 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
                 ..RunConfig::defaults(algo, &env)
             };
             config.validate()?;
-            config.check_memory(spec.observation_dim, trainer::action_kind(&spec.action_space))?;
+            config.check_memory(
+                spec.observation_dim,
+                trainer::action_kind(&spec.action_space),
+            )?;
             if backend == BackendKind::Wgpu {
                 quiet_wgpu();
             }
@@ -339,11 +410,19 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             for e in &split {
                 println!(
                     "{:>5}  {:>7.3}  {:>9.3}  {:>8.3}  {:>7.3}  {:>7.3}  {:>11.0}",
-                    e.epoch, e.total_s, e.rollout_s, e.policy_s, e.value_s, e.other_s, e.steps_per_s
+                    e.epoch,
+                    e.total_s,
+                    e.rollout_s,
+                    e.policy_s,
+                    e.value_s,
+                    e.other_s,
+                    e.steps_per_s
                 );
             }
             let later = split.get(1..).unwrap_or_default();
-            let med = |f: fn(&apo_cli::bench::EpochSplit) -> f64| apo_cli::bench::median_of(later.iter().map(f));
+            let med = |f: fn(&apo_cli::bench::EpochSplit) -> f64| {
+                apo_cli::bench::median_of(later.iter().map(f))
+            };
             println!(
                 "median_epochs_2_on: total_s={:.3} rollout_s={:.3} policy_s={:.3} value_s={:.3} other_s={:.3} steps_per_s={:.0}",
                 med(|e| e.total_s),
@@ -360,9 +439,20 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             println!("env={env} steps={steps}");
             println!("steps_per_sec={rate:.1}");
         }
-        BenchCommand::Policy { obs, act, batch, calls } => {
-            let (obs, act, batch, calls) = (obs as usize, act as usize, batch as usize, calls as usize);
-            let us = apo_cli::bench::policy_call_us(obs, apo_core::ActionKind::Continuous { dim: act }, batch, calls);
+        BenchCommand::Policy {
+            obs,
+            act,
+            batch,
+            calls,
+        } => {
+            let (obs, act, batch, calls) =
+                (obs as usize, act as usize, batch as usize, calls as usize);
+            let us = apo_cli::bench::policy_call_us(
+                obs,
+                apo_core::ActionKind::Continuous { dim: act },
+                batch,
+                calls,
+            );
             println!("obs={obs} act={act} batch={batch}");
             println!("policy_call_us={us:.3}");
         }
@@ -371,16 +461,29 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
 }
 
 fn list() -> anyhow::Result<()> {
-    println!("{:<28} {:>8}  {:<14} {:>9}", "environment", "obs dim", "actions", "max steps");
+    println!(
+        "{:<28} {:>8}  {:<14} {:>9}",
+        "environment", "obs dim", "actions", "max steps"
+    );
     for spec in apo_envs::list() {
         let actions = match &spec.action_space {
             apo_envs::Space::Discrete { n } => format!("discrete({n})"),
             apo_envs::Space::Box { low, .. } => format!("box({})", low.len()),
         };
-        println!("{:<28} {:>8}  {:<14} {:>9}", spec.name, spec.observation_dim, actions, spec.max_episode_steps);
+        println!(
+            "{:<28} {:>8}  {:<14} {:>9}",
+            spec.name, spec.observation_dim, actions, spec.max_episode_steps
+        );
     }
     println!();
-    println!("algorithms: {}", Algorithm::ALL.iter().map(|a| a.name()).collect::<Vec<_>>().join(", "));
+    println!(
+        "algorithms: {}",
+        Algorithm::ALL
+            .iter()
+            .map(|a| a.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     Ok(())
 }
 
@@ -395,7 +498,9 @@ struct Bar {
 
 impl Bar {
     fn new(quiet: bool, config: &RunConfig) -> Self {
-        let total = (config.steps_per_epoch.div_ceil(config.num_envs) * config.num_envs * config.epochs) as u64;
+        let total = (config.steps_per_epoch.div_ceil(config.num_envs)
+            * config.num_envs
+            * config.epochs) as u64;
         let bar = (!quiet).then(|| {
             let bar = ProgressBar::new(total);
             bar.set_style(
@@ -404,7 +509,13 @@ impl Bar {
             );
             bar
         });
-        Self { bar, epochs: config.epochs, epoch: 0, started: false, last: String::new() }
+        Self {
+            bar,
+            epochs: config.epochs,
+            epoch: 0,
+            started: false,
+            last: String::new(),
+        }
     }
 }
 
@@ -417,7 +528,12 @@ impl Observer for Bar {
                 bar.reset_eta();
                 self.started = true;
             }
-            bar.set_message(format!("epoch {}/{}{}", self.epoch + 1, self.epochs, self.last));
+            bar.set_message(format!(
+                "epoch {}/{}{}",
+                self.epoch + 1,
+                self.epochs,
+                self.last
+            ));
         }
     }
 
@@ -448,11 +564,22 @@ fn init_logging(run_dir: &Path) -> anyhow::Result<()> {
         .append(true)
         .open(&path)
         .with_context(|| format!("cannot open {}", path.display()))?;
-    let stderr_filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("warn"));
+    let stderr_filter =
+        EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("warn"));
     let ansi = std::io::stderr().is_terminal();
     tracing_subscriber::registry()
-        .with(fmt::layer().with_writer(std::sync::Mutex::new(file)).with_ansi(false).with_filter(EnvFilter::new("info")))
-        .with(fmt::layer().with_writer(std::io::stderr).with_ansi(ansi).with_filter(stderr_filter))
+        .with(
+            fmt::layer()
+                .with_writer(std::sync::Mutex::new(file))
+                .with_ansi(false)
+                .with_filter(EnvFilter::new("info")),
+        )
+        .with(
+            fmt::layer()
+                .with_writer(std::io::stderr)
+                .with_ansi(ansi)
+                .with_filter(stderr_filter),
+        )
         .try_init()
         .ok();
     Ok(())
@@ -466,7 +593,9 @@ fn quiet_wgpu() {
     #[cfg(unix)]
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
-        let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else { return };
+        let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+            return;
+        };
         let dir = std::env::temp_dir().join(format!("apo-runtime-{uid}"));
         let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
         let private = std::fs::symlink_metadata(&dir)
@@ -489,7 +618,10 @@ impl Signals {
     fn install() -> anyhow::Result<Self> {
         use signal_hook::consts::{SIGINT, SIGTERM};
         use signal_hook::flag;
-        let (stop, which) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicUsize::new(0)));
+        let (stop, which) = (
+            Arc::new(AtomicBool::new(false)),
+            Arc::new(AtomicUsize::new(0)),
+        );
         for signal in [SIGINT, SIGTERM] {
             // registered first, so it sees `stop` as the previous signal left it
             flag::register_conditional_shutdown(signal, 128 + signal, Arc::clone(&stop))
@@ -512,17 +644,23 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
                 || args.checkpoint_every.is_some()
                 || !args.sets.is_empty()
             {
-                bail!("--resume continues a run with its own config.toml; only --epochs may change");
+                bail!(
+                    "--resume continues a run with its own config.toml; only --epochs may change"
+                );
             }
             let config_path = dir.join(run_dir::CONFIG);
-            let mut config = RunConfig::load(&config_path).with_context(|| format!("{} is not a run directory", dir.display()))?;
+            let mut config = RunConfig::load(&config_path)
+                .with_context(|| format!("{} is not a run directory", dir.display()))?;
             let lock = RunLock::acquire(dir)?;
             let spec = apo_envs::registry::spec(&config.env)?;
             if let Some(epochs) = args.epochs {
                 config.epochs = epochs;
                 config.validate()?;
             }
-            config.check_memory(spec.observation_dim, trainer::action_kind(&spec.action_space))?;
+            config.check_memory(
+                spec.observation_dim,
+                trainer::action_kind(&spec.action_space),
+            )?;
             if args.epochs.is_some() {
                 // the new target is part of the run: a later plain --resume continues to it
                 apo_cli::atomic::write(&config_path, config.to_toml().as_bytes())
@@ -531,8 +669,13 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
             (config, dir.clone(), true, lock)
         }
         None => {
-            let algo = args.algo.context("--algo is required (apo, papo, trpo, ppo, a2c)")?;
-            let env = args.env.clone().context("--env is required (see `apo list`)")?;
+            let algo = args
+                .algo
+                .context("--algo is required (apo, papo, trpo, ppo, a2c)")?;
+            let env = args
+                .env
+                .clone()
+                .context("--env is required (see `apo list`)")?;
             let spec = apo_envs::registry::spec(&env)?;
             let mut sets = args.sets.clone();
             let flag = |k: &str, v: Option<String>| v.map(|v| format!("{k}={v}"));
@@ -541,20 +684,28 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
                     flag("env", Some(format!("{env:?}"))),
                     flag("seed", args.seed.map(|v| v.to_string())),
                     flag("epochs", args.epochs.map(|v| v.to_string())),
-                    flag("steps_per_epoch", args.steps_per_epoch.map(|v| v.to_string())),
+                    flag(
+                        "steps_per_epoch",
+                        args.steps_per_epoch.map(|v| v.to_string()),
+                    ),
                     flag("num_envs", args.num_envs.map(|v| v.to_string())),
-                    flag("checkpoint_every", args.checkpoint_every.map(|v| v.to_string())),
+                    flag(
+                        "checkpoint_every",
+                        args.checkpoint_every.map(|v| v.to_string()),
+                    ),
                     flag("backend", args.backend.map(|b| format!("\"{b}\""))),
                 ]
                 .into_iter()
                 .flatten(),
             );
             let config = RunConfig::build(algo, &env, args.config.as_deref(), &sets)?;
-            config.check_memory(spec.observation_dim, trainer::action_kind(&spec.action_space))?;
-            let dir = args
-                .out
-                .clone()
-                .unwrap_or_else(|| PathBuf::from(format!("runs/{}-{}-s{}", config.env, algo, config.seed)));
+            config.check_memory(
+                spec.observation_dim,
+                trainer::action_kind(&spec.action_space),
+            )?;
+            let dir = args.out.clone().unwrap_or_else(|| {
+                PathBuf::from(format!("runs/{}-{}-s{}", config.env, algo, config.seed))
+            });
             let mut prepared = NewRunDir::prepare(&dir, args.force)?;
             let lock = prepared.take_lock().context("the run directory's lock")?;
             let config_path = dir.join(run_dir::CONFIG);
@@ -576,17 +727,34 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
     result
 }
 
-fn run_training(config: &RunConfig, run_dir: &Path, resume: bool, quiet: bool) -> anyhow::Result<ExitCode> {
+fn run_training(
+    config: &RunConfig,
+    run_dir: &Path,
+    resume: bool,
+    quiet: bool,
+) -> anyhow::Result<ExitCode> {
     init_logging(run_dir)?;
     let signals = Signals::install()?;
     let mut bar = Bar::new(quiet, config);
     let end = match config.backend {
-        BackendKind::Cpu => {
-            trainer::train::<burn::backend::NdArray>(config, run_dir, &Default::default(), resume, &signals.stop, &mut bar)
-        }
+        BackendKind::Cpu => trainer::train::<burn::backend::NdArray>(
+            config,
+            run_dir,
+            &Default::default(),
+            resume,
+            &signals.stop,
+            &mut bar,
+        ),
         BackendKind::Wgpu => {
             quiet_wgpu();
-            trainer::train::<burn::backend::Wgpu>(config, run_dir, &Default::default(), resume, &signals.stop, &mut bar)
+            trainer::train::<burn::backend::Wgpu>(
+                config,
+                run_dir,
+                &Default::default(),
+                resume,
+                &signals.stop,
+                &mut bar,
+            )
         }
     };
     if let Some(bar) = &bar.bar {

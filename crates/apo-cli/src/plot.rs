@@ -83,12 +83,16 @@ fn load_font() -> anyhow::Result<()> {
         let path = FONT_PATHS.iter().map(PathBuf::from).find(|p| p.exists()).context(
             "no font for the plot's text: install Debian's fonts-dejavu-core (apt-get install fonts-dejavu-core)",
         )?;
-        let bytes = std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let bytes =
+            std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
         let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
         register_font("sans-serif", FontStyle::Normal, bytes)
             .map_err(|_| anyhow::anyhow!("{} is not a usable font", path.display()))
     };
-    LOADED.get_or_init(|| register().map_err(|e| format!("{e:#}"))).clone().map_err(anyhow::Error::msg)
+    LOADED
+        .get_or_init(|| register().map_err(|e| format!("{e:#}")))
+        .clone()
+        .map_err(anyhow::Error::msg)
 }
 
 /// The image formats by file extension.
@@ -99,10 +103,18 @@ enum ImageFormat {
 
 impl ImageFormat {
     fn of(out: &Path) -> anyhow::Result<Self> {
-        match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        match out
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
             Some("png") => Ok(Self::Png),
             Some("svg") => Ok(Self::Svg),
-            _ => bail!("cannot tell the image format of {}: use a .png or .svg file name", out.display()),
+            _ => bail!(
+                "cannot tell the image format of {}: use a .png or .svg file name",
+                out.display()
+            ),
         }
     }
 }
@@ -143,7 +155,10 @@ impl Run {
         let (max, skipped_max) = column(&rows, |r| r.ep_ret_max, smooth);
         Ok(Self {
             dir: dir.to_path_buf(),
-            label: dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned()),
+            label: dir.file_name().map_or_else(
+                || dir.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            ),
             env: config.env,
             algo: config.algo.algo.name(),
             mean,
@@ -156,17 +171,32 @@ impl Run {
 
     /// Every drawn return.
     fn returns(&self) -> impl Iterator<Item = f64> + '_ {
-        self.mean.iter().chain(&self.min).chain(&self.max).map(|&(_, y)| y)
+        self.mean
+            .iter()
+            .chain(&self.min)
+            .chain(&self.max)
+            .map(|&(_, y)| y)
     }
 }
 
 /// The finite values of one column against environment steps, smoothed over `smooth` epochs,
 /// and how many values were left out for not being finite.
-fn column(rows: &[ProgressRow], value: fn(&ProgressRow) -> Option<f64>, smooth: usize) -> (Series, usize) {
-    let logged: Series = rows.iter().filter_map(|r| value(r).map(|v| (r.env_steps as f64, v))).collect();
+fn column(
+    rows: &[ProgressRow],
+    value: fn(&ProgressRow) -> Option<f64>,
+    smooth: usize,
+) -> (Series, usize) {
+    let logged: Series = rows
+        .iter()
+        .filter_map(|r| value(r).map(|v| (r.env_steps as f64, v)))
+        .collect();
     let (finite, skipped): (Series, Series) = logged.into_iter().partition(|&(_, y)| y.is_finite());
     let ys: Vec<f64> = finite.iter().map(|&(_, y)| y).collect();
-    let smoothed = finite.iter().map(|&(x, _)| x).zip(moving_average(&ys, smooth)).collect();
+    let smoothed = finite
+        .iter()
+        .map(|&(x, _)| x)
+        .zip(moving_average(&ys, smooth))
+        .collect();
     (smoothed, skipped.len())
 }
 
@@ -207,7 +237,8 @@ fn return_axis(runs: &[Run]) -> anyhow::Result<Range<f64>> {
             .flat_map(|run| run.returns().map(move |y| (y, run)))
             .reduce(|a, b| if better(b.0, a.0) { b } else { a })
     };
-    let (Some((lo, lo_run)), Some((hi, hi_run))) = (extreme(|a, b| a < b), extreme(|a, b| a > b)) else {
+    let (Some((lo, lo_run)), Some((hi, hi_run))) = (extreme(|a, b| a < b), extreme(|a, b| a > b))
+    else {
         bail!("the runs have no completed episode with a finite return to plot yet");
     };
     let span = hi - lo;
@@ -254,14 +285,26 @@ struct ReturnTicks {
 impl ReturnTicks {
     fn new(axis: &Range<f64>) -> Self {
         let ticks = RangedCoordf64::from(axis.clone()).key_points(Y_LABELS);
-        let spacing = ticks.windows(2).map(|w| w[1] - w[0]).fold(axis.end - axis.start, f64::min);
+        let spacing = ticks
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(axis.end - axis.start, f64::min);
         let scientific = axis.start.abs().max(axis.end.abs()) >= 1e6;
         let exact = |decimals: usize| {
             ticks.iter().all(|&t| {
-                Self { decimals, scientific }.format(t).parse::<f64>().is_ok_and(|shown| (shown - t).abs() <= spacing * 1e-3)
+                Self {
+                    decimals,
+                    scientific,
+                }
+                .format(t)
+                .parse::<f64>()
+                .is_ok_and(|shown| (shown - t).abs() <= spacing * 1e-3)
             })
         };
-        Self { decimals: (0..=15).find(|&d| exact(d)).unwrap_or(15), scientific }
+        Self {
+            decimals: (0..=15).find(|&d| exact(d)).unwrap_or(15),
+            scientific,
+        }
     }
 
     fn format(&self, value: f64) -> String {
@@ -270,7 +313,10 @@ impl ReturnTicks {
             let text = format!("{value:.*e}", self.decimals);
             match text.split_once('e') {
                 Some((mantissa, exponent)) if mantissa.contains('.') => {
-                    format!("{}e{exponent}", mantissa.trim_end_matches('0').trim_end_matches('.'))
+                    format!(
+                        "{}e{exponent}",
+                        mantissa.trim_end_matches('0').trim_end_matches('.')
+                    )
                 }
                 _ => text,
             }
@@ -305,7 +351,10 @@ impl<'a> Figure<'a> {
         }
         let skipped: usize = runs.iter().map(|r| r.skipped).sum();
         if skipped > 0 {
-            subtitle += &format!(" · {skipped} non-finite value{} left out", if skipped == 1 { "" } else { "s" });
+            subtitle += &format!(
+                " · {skipped} non-finite value{} left out",
+                if skipped == 1 { "" } else { "s" }
+            );
         }
         Ok(Self {
             runs,
@@ -325,19 +374,31 @@ impl<'a> Figure<'a> {
         let (width, _) = root.dim_in_pixel();
         let (header, body) = root.split_vertically(HEADER_HEIGHT);
         let centered = Pos::new(HPos::Center, VPos::Top);
-        header.draw(&Text::new(self.title.as_str(), (width as i32 / 2, 14), font(28).pos(centered)))?;
-        header.draw(&Text::new(self.subtitle.as_str(), (width as i32 / 2, 54), font(17).color(&GREY).pos(centered)))?;
+        header.draw(&Text::new(
+            self.title.as_str(),
+            (width as i32 / 2, 14),
+            font(28).pos(centered),
+        ))?;
+        header.draw(&Text::new(
+            self.subtitle.as_str(),
+            (width as i32 / 2, 54),
+            font(17).color(&GREY).pos(centered),
+        ))?;
 
         let labels: Vec<&str> = self.runs.iter().map(|r| r.label.as_str()).collect();
         let widest = labels
             .iter()
             .chain(&LEGEND_KEY.map(|(text, _)| text))
-            .map(|text| body.estimate_text_size(text, &font(LABEL_FONT)).map(|(w, _)| w))
+            .map(|text| {
+                body.estimate_text_size(text, &font(LABEL_FONT))
+                    .map(|(w, _)| w)
+            })
             .collect::<Result<Vec<_>, _>>()?
             .into_iter()
             .max()
             .unwrap_or(0);
-        let legend_width = (widest + LEGEND_TEXT_X as u32 + 16).clamp(LEGEND_WIDTH.start, LEGEND_WIDTH.end);
+        let legend_width =
+            (widest + LEGEND_TEXT_X as u32 + 16).clamp(LEGEND_WIDTH.start, LEGEND_WIDTH.end);
         let (chart_area, legend_area) = body.split_horizontally(width - legend_width);
         self.draw_chart(&chart_area)?;
         draw_legend(&legend_area, &labels)?;
@@ -352,7 +413,10 @@ impl<'a> Figure<'a> {
         let ticks = ReturnTicks::new(&self.y);
         let tick_width = [self.y.start, self.y.end]
             .into_iter()
-            .map(|y| area.estimate_text_size(&ticks.format(y), &font(LABEL_FONT)).map(|(w, _)| w))
+            .map(|y| {
+                area.estimate_text_size(&ticks.format(y), &font(LABEL_FONT))
+                    .map(|(w, _)| w)
+            })
             .collect::<Result<Vec<_>, _>>()?
             .into_iter()
             .max()
@@ -382,15 +446,31 @@ impl<'a> Figure<'a> {
         // runs overlap
         let opacity = (0.3 / self.runs.len() as f64).clamp(0.04, 0.15);
         for (i, run) in self.runs.iter().enumerate() {
-            let band: Series = run.max.iter().chain(run.min.iter().rev()).copied().collect();
+            let band: Series = run
+                .max
+                .iter()
+                .chain(run.min.iter().rev())
+                .copied()
+                .collect();
             if band.len() > 2 {
-                chart.draw_series(std::iter::once(Polygon::new(band, color(i).mix(opacity).filled())))?;
+                chart.draw_series(std::iter::once(Polygon::new(
+                    band,
+                    color(i).mix(opacity).filled(),
+                )))?;
             }
         }
         for (i, run) in self.runs.iter().enumerate() {
             let color = color(i);
-            chart.draw_series(LineSeries::new(run.mean.iter().copied(), color.stroke_width(2)))?;
-            chart.draw_series(DashedLineSeries::new(run.min.iter().copied(), 8, 5, color.stroke_width(2)))?;
+            chart.draw_series(LineSeries::new(
+                run.mean.iter().copied(),
+                color.stroke_width(2),
+            ))?;
+            chart.draw_series(DashedLineSeries::new(
+                run.min.iter().copied(),
+                8,
+                5,
+                color.stroke_width(2),
+            ))?;
             if run.mean.len() == 1 {
                 // a single epoch makes no line: mark it
                 chart.draw_series(run.mean.iter().map(|&p| Circle::new(p, 4, color.filled())))?;
@@ -401,8 +481,11 @@ impl<'a> Figure<'a> {
 }
 
 /// The legend's line-style key: text and sample.
-const LEGEND_KEY: [(&str, Sample); 3] =
-    [("mean return", Sample::Solid), ("min–max band", Sample::Band), ("worst return", Sample::Dashed)];
+const LEGEND_KEY: [(&str, Sample); 3] = [
+    ("mean return", Sample::Solid),
+    ("min–max band", Sample::Band),
+    ("worst return", Sample::Dashed),
+];
 /// Where the legend's texts start.
 const LEGEND_TEXT_X: i32 = 12 + SWATCH + 10;
 
@@ -415,28 +498,46 @@ enum Sample {
 }
 
 /// The legend panel: one entry per run (as many as fit), then the line-style key.
-fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, labels: &[&str]) -> anyhow::Result<()>
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    labels: &[&str],
+) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
     let (width, height) = area.dim_in_pixel();
     let text_width = width.saturating_sub(LEGEND_TEXT_X as u32 + 8);
     let text = font(LABEL_FONT).pos(Pos::new(HPos::Left, VPos::Center));
-    let heading = font(LABEL_FONT + 1).color(&GREY).pos(Pos::new(HPos::Left, VPos::Center));
+    let heading = font(LABEL_FONT + 1)
+        .color(&GREY)
+        .pos(Pos::new(HPos::Left, VPos::Center));
     let entry = |y: i32, label: &str, sample: Sample, color: RGBColor| -> anyhow::Result<()> {
         let line = [(12, y), (12 + SWATCH, y)];
         match sample {
             Sample::Solid => area.draw(&PathElement::new(line, color.stroke_width(3)))?,
-            Sample::Band => area.draw(&Rectangle::new([(12, y - 7), (12 + SWATCH, y + 7)], color.mix(0.2).filled()))?,
-            Sample::Dashed => area.draw(&DashedPathElement::new(line, 8, 5, color.stroke_width(2)))?,
+            Sample::Band => area.draw(&Rectangle::new(
+                [(12, y - 7), (12 + SWATCH, y + 7)],
+                color.mix(0.2).filled(),
+            ))?,
+            Sample::Dashed => {
+                area.draw(&DashedPathElement::new(line, 8, 5, color.stroke_width(2)))?
+            }
         }
-        area.draw(&Text::new(fit(area, label, text_width)?, (LEGEND_TEXT_X, y), text.clone()))?;
+        area.draw(&Text::new(
+            fit(area, label, text_width)?,
+            (LEGEND_TEXT_X, y),
+            text.clone(),
+        ))?;
         Ok(())
     };
 
     // rows for the two headings, the key, a gap and a possible "… more" line
     let room = (height as i32 / LEGEND_ROW - 2 - LEGEND_KEY.len() as i32 - 2).max(1) as usize;
-    let shown = if labels.len() > room { room - 1 } else { labels.len() };
+    let shown = if labels.len() > room {
+        room - 1
+    } else {
+        labels.len()
+    };
     let mut y = 22;
     area.draw(&Text::new("Runs", (12, y), heading.clone()))?;
     for (i, label) in labels.iter().take(shown).enumerate() {
@@ -445,7 +546,11 @@ where
     }
     if shown < labels.len() {
         y += LEGEND_ROW;
-        area.draw(&Text::new(format!("… and {} more", labels.len() - shown), (LEGEND_TEXT_X, y), text.clone()))?;
+        area.draw(&Text::new(
+            format!("… and {} more", labels.len() - shown),
+            (LEGEND_TEXT_X, y),
+            text.clone(),
+        ))?;
     }
     y += 2 * LEGEND_ROW;
     area.draw(&Text::new("Lines", (12, y), heading))?;
@@ -457,7 +562,11 @@ where
 }
 
 /// `text`, shortened with an ellipsis to fit `width` pixels in the legend's font.
-fn fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, text: &str, width: u32) -> anyhow::Result<String>
+fn fit<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    text: &str,
+    width: u32,
+) -> anyhow::Result<String>
 where
     DB::ErrorType: 'static,
 {
@@ -489,7 +598,10 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
         bail!("no run directory given");
     }
     let format = ImageFormat::of(out)?;
-    let runs = runs.iter().map(|dir| Run::load(dir, options.smooth)).collect::<anyhow::Result<Vec<_>>>()?;
+    let runs = runs
+        .iter()
+        .map(|dir| Run::load(dir, options.smooth))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     for run in runs.iter().filter(|r| r.skipped > 0) {
         eprintln!(
             "note: {}: left out {} non-finite return value{} (inf or NaN)",
@@ -520,7 +632,11 @@ mod tests {
         assert_eq!(moving_average(&[1.0, 7.0], 1), [1.0, 7.0]);
         assert_eq!(moving_average(&[2.0, 4.0], 10), [2.0, 3.0]);
         assert!(moving_average(&[], 3).is_empty());
-        assert_eq!(moving_average(&[1e308, 1e308], 2), [1e308, 1e308], "no overflow");
+        assert_eq!(
+            moving_average(&[1e308, 1e308], 2),
+            [1e308, 1e308],
+            "no overflow"
+        );
     }
 
     #[test]
@@ -542,13 +658,30 @@ mod tests {
     fn return_ticks_have_the_precision_of_their_spacing() {
         let labels = |axis: Range<f64>| {
             let ticks = ReturnTicks::new(&axis);
-            RangedCoordf64::from(axis).key_points(Y_LABELS).into_iter().map(|t| ticks.format(t)).collect::<Vec<_>>()
+            RangedCoordf64::from(axis)
+                .key_points(Y_LABELS)
+                .into_iter()
+                .map(|t| ticks.format(t))
+                .collect::<Vec<_>>()
         };
-        assert_eq!(labels(-20.0..520.0), ["0", "100", "200", "300", "400", "500"]);
-        assert_eq!(labels(0.0..1.2), ["0.0", "0.2", "0.4", "0.6", "0.8", "1.0", "1.2"]);
+        assert_eq!(
+            labels(-20.0..520.0),
+            ["0", "100", "200", "300", "400", "500"]
+        );
+        assert_eq!(
+            labels(0.0..1.2),
+            ["0.0", "0.2", "0.4", "0.6", "0.8", "1.0", "1.2"]
+        );
         assert_eq!(labels(-0.25..0.25), ["-0.2", "-0.1", "0.0", "0.1", "0.2"]);
         assert_eq!(labels(0.0..0.4)[..3], ["0.00", "0.05", "0.10"]);
         assert_eq!(labels(0.0..3e7)[..4], ["0", "5e6", "1e7", "1.5e7"]);
-        assert_eq!(ReturnTicks { decimals: 2, scientific: false }.format(-0.001), "0.00");
+        assert_eq!(
+            ReturnTicks {
+                decimals: 2,
+                scientific: false
+            }
+            .format(-0.001),
+            "0.00"
+        );
     }
 }

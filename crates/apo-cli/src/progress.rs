@@ -6,7 +6,13 @@ use apo_core::{EpisodeStats, LineSearchOutcome, UpdateReport};
 use serde::{Deserialize, Serialize};
 
 /// The columns that depend on wall-clock time (everything else is reproducible).
-pub const TIME_COLUMNS: [&str; 5] = ["steps_per_s", "time_s", "rollout_s", "update_pi_s", "update_v_s"];
+pub const TIME_COLUMNS: [&str; 5] = [
+    "steps_per_s",
+    "time_s",
+    "rollout_s",
+    "update_pi_s",
+    "update_v_s",
+];
 
 /// One epoch's row. Return statistics are empty when no episode ended in the epoch.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -129,7 +135,12 @@ pub fn read(path: &Path) -> anyhow::Result<Vec<ProgressRow>> {
     reader
         .deserialize()
         .collect::<Result<Vec<ProgressRow>, _>>()
-        .map_err(|e| anyhow::anyhow!("{} is not a progress file of this version: {e}", path.display()))
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "{} is not a progress file of this version: {e}",
+                path.display()
+            )
+        })
 }
 
 /// Writes `rows` to `path` atomically (the whole file is rewritten each epoch).
@@ -141,7 +152,9 @@ pub fn write(path: &Path, rows: &[ProgressRow]) -> anyhow::Result<()> {
     if rows.is_empty() {
         return Ok(());
     }
-    let bytes = writer.into_inner().map_err(|e| anyhow::anyhow!("csv: {e}"))?;
+    let bytes = writer
+        .into_inner()
+        .map_err(|e| anyhow::anyhow!("csv: {e}"))?;
     crate::atomic::write(path, &bytes)?;
     Ok(())
 }

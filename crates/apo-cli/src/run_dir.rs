@@ -31,7 +31,9 @@ pub const EVENTS_PREFIX: &str = "events.out.tfevents.";
 fn is_run_entry(name: &str) -> bool {
     matches!(name, CONFIG | PROGRESS | LOG | LOCK | CHECKPOINTS)
         || name.starts_with(EVENTS_PREFIX)
-        || [CONFIG, PROGRESS, LOG].iter().any(|f| name == format!(".{f}.tmp"))
+        || [CONFIG, PROGRESS, LOG]
+            .iter()
+            .any(|f| name == format!(".{f}.tmp"))
 }
 
 /// Whether `dir` is a run directory (its `config.toml` is a valid run configuration).
@@ -63,7 +65,11 @@ impl RunLock {
                 let mut holder = String::new();
                 let _ = file.read_to_string(&mut holder);
                 let holder = holder.trim();
-                let who = if holder.is_empty() { String::new() } else { format!(" ({holder})") };
+                let who = if holder.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({holder})")
+                };
                 bail!(
                     "run directory {} is in use by another apo process{who}; wait for it to end or stop it first",
                     dir.display()
@@ -97,17 +103,29 @@ impl NewRunDir {
     /// anything that is not a run directory even with it; nothing is touched then.
     pub fn prepare(dir: &Path, force: bool) -> anyhow::Result<Self> {
         if !dir.exists() {
-            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create {}", dir.display()))?;
             let lock = RunLock::acquire(dir)?;
-            return Ok(Self { dir: dir.to_path_buf(), created: true, lock: Some(lock) });
+            return Ok(Self {
+                dir: dir.to_path_buf(),
+                created: true,
+                lock: Some(lock),
+            });
         }
         if !dir.is_dir() {
-            bail!("{} exists and is not a directory; choose another --out", dir.display());
+            bail!(
+                "{} exists and is not a directory; choose another --out",
+                dir.display()
+            );
         }
         let entries = entry_names(dir)?;
         if entries.iter().all(|n| n == LOCK) {
             let lock = RunLock::acquire(dir)?;
-            return Ok(Self { dir: dir.to_path_buf(), created: false, lock: Some(lock) });
+            return Ok(Self {
+                dir: dir.to_path_buf(),
+                created: false,
+                lock: Some(lock),
+            });
         }
         if !force {
             bail!(
@@ -136,13 +154,25 @@ impl NewRunDir {
                 continue;
             }
             let path = dir.join(&name);
-            let removed = if path.is_dir() { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
+            let removed = if path.is_dir() {
+                std::fs::remove_dir_all(&path)
+            } else {
+                std::fs::remove_file(&path)
+            };
             removed.with_context(|| format!("cannot remove {}", path.display()))?;
         }
         if !kept.is_empty() {
-            eprintln!("--force kept what apo did not create in {}: {}", dir.display(), kept.join(", "));
+            eprintln!(
+                "--force kept what apo did not create in {}: {}",
+                dir.display(),
+                kept.join(", ")
+            );
         }
-        Ok(Self { dir: dir.to_path_buf(), created: false, lock: Some(lock) })
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            created: false,
+            lock: Some(lock),
+        })
     }
 
     /// The directory.
@@ -159,10 +189,16 @@ impl NewRunDir {
     /// apo's files, and the directory itself when this run created it and nothing else is in it.
     pub fn discard(mut self) {
         drop(self.lock.take());
-        let Ok(entries) = entry_names(&self.dir) else { return };
+        let Ok(entries) = entry_names(&self.dir) else {
+            return;
+        };
         for name in entries.iter().filter(|n| is_run_entry(n)) {
             let path = self.dir.join(name);
-            let _ = if path.is_dir() { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
+            let _ = if path.is_dir() {
+                std::fs::remove_dir_all(&path)
+            } else {
+                std::fs::remove_file(&path)
+            };
         }
         if self.created {
             let _ = std::fs::remove_dir(&self.dir);
@@ -186,11 +222,24 @@ mod tests {
 
     #[test]
     fn run_entries_are_apos_own_files() {
-        for name in ["config.toml", "progress.csv", "train.log", "apo.lock", "checkpoints", ".progress.csv.tmp"] {
+        for name in [
+            "config.toml",
+            "progress.csv",
+            "train.log",
+            "apo.lock",
+            "checkpoints",
+            ".progress.csv.tmp",
+        ] {
             assert!(is_run_entry(name), "{name}");
         }
         assert!(is_run_entry("events.out.tfevents.1700000000.host"));
-        for name in ["thesis.txt", "curves.png", ".git", "config.toml.bak", "progress.csv.old"] {
+        for name in [
+            "thesis.txt",
+            "curves.png",
+            ".git",
+            "config.toml.bak",
+            "progress.csv.old",
+        ] {
             assert!(!is_run_entry(name), "{name}");
         }
     }
@@ -200,8 +249,15 @@ mod tests {
         let tmp = tempfile::tempdir().expect("tempdir");
         let first = RunLock::acquire(tmp.path()).expect("first lock");
         let err = RunLock::acquire(tmp.path()).expect_err("second lock must fail");
-        assert!(err.to_string().contains("in use by another apo process"), "{err}");
-        assert!(err.to_string().contains(&format!("pid {}", std::process::id())), "{err}");
+        assert!(
+            err.to_string().contains("in use by another apo process"),
+            "{err}"
+        );
+        assert!(
+            err.to_string()
+                .contains(&format!("pid {}", std::process::id())),
+            "{err}"
+        );
         drop(first);
         RunLock::acquire(tmp.path()).expect("free again");
     }

@@ -40,7 +40,11 @@ pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
         mean_last: average_over_epochs(&means, Some(last)),
         worst_all: average_over_epochs(&worst, None),
         worst_last: average_over_epochs(&worst, Some(last)),
-        steps_per_s: if time > 0.0 { env_steps as f64 / time } else { 0.0 },
+        steps_per_s: if time > 0.0 {
+            env_steps as f64 / time
+        } else {
+            0.0
+        },
     })
 }
 
@@ -116,7 +120,9 @@ pub fn csv(rows: &[(String, RunSummary)], last: usize) -> anyhow::Result<String>
         let values = cells(s).map(Option::unwrap_or_default);
         writer.write_record(std::iter::once(run).chain(&values))?;
     }
-    let bytes = writer.into_inner().map_err(|e| anyhow::anyhow!("csv: {e}"))?;
+    let bytes = writer
+        .into_inner()
+        .map_err(|e| anyhow::anyhow!("csv: {e}"))?;
     Ok(String::from_utf8(bytes)?)
 }
 
@@ -160,10 +166,23 @@ mod tests {
         assert_eq!(lines.len(), 3);
         let width = lines[0].chars().count();
         assert!(lines.iter().all(|l| l.chars().count() == width), "{text}");
-        let header: Vec<&str> = lines[0].split("  ").filter(|c| !c.is_empty()).map(str::trim).collect();
+        let header: Vec<&str> = lines[0]
+            .split("  ")
+            .filter(|c| !c.is_empty())
+            .map(str::trim)
+            .collect();
         assert_eq!(
             header,
-            ["run", "epochs", "env steps", "mean(all)", "mean(last 20)", "worst(all)", "worst(last 20)", "steps/s"]
+            [
+                "run",
+                "epochs",
+                "env steps",
+                "mean(all)",
+                "mean(last 20)",
+                "worst(all)",
+                "worst(last 20)",
+                "steps/s"
+            ]
         );
         assert!(lines[1].starts_with("runs/Hopper-apo-s0 "));
         assert!(lines[1].ends_with("  1234"), "{text}");
@@ -178,15 +197,29 @@ mod tests {
     #[test]
     fn csv_round_trips_and_quotes() {
         let text = csv(&rows(), 10).unwrap();
-        assert!(text.starts_with("run,epochs,env_steps,mean_all,mean_last10,worst_all,worst_last10,steps_per_s\n"));
+        assert!(text.starts_with(
+            "run,epochs,env_steps,mean_all,mean_last10,worst_all,worst_last10,steps_per_s\n"
+        ));
         assert!(text.contains("\"runs/a,b \"\"quoted\"\"\","), "{text}");
         let mut reader = ::csv::Reader::from_reader(text.as_bytes());
         let records: Vec<::csv::StringRecord> = reader.records().collect::<Result<_, _>>().unwrap();
         assert_eq!(records.len(), 2);
         assert_eq!(
             records[0].iter().collect::<Vec<_>>(),
-            ["runs/Hopper-apo-s0", "75", "300000", "812.46", "1503.10", "-12.00", "420.00", "1234"]
+            [
+                "runs/Hopper-apo-s0",
+                "75",
+                "300000",
+                "812.46",
+                "1503.10",
+                "-12.00",
+                "420.00",
+                "1234"
+            ]
         );
-        assert_eq!(records[1].iter().collect::<Vec<_>>(), ["runs/a,b \"quoted\"", "2", "40", "", "", "", "", "0"]);
+        assert_eq!(
+            records[1].iter().collect::<Vec<_>>(),
+            ["runs/a,b \"quoted\"", "2", "40", "", "", "", "", "0"]
+        );
     }
 }

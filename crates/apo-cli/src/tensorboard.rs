@@ -52,15 +52,26 @@ impl EventWriter {
     /// is taken: an existing file is never overwritten), and writes the file-version event.
     pub fn create(dir: &Path) -> anyhow::Result<Self> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        let now = SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default();
+        let now = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .unwrap_or_default();
         let host: String = gethostname::gethostname()
             .to_string_lossy()
             .chars()
-            .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '.' { c } else { '_' })
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' || c == '.' {
+                    c
+                } else {
+                    '_'
+                }
+            })
             .collect();
         let base = format!("events.out.tfevents.{}.{host}", now.as_secs());
         let (file, path) = create_new(dir, &base)?;
-        let mut writer = Self { file: BufWriter::new(file), path };
+        let mut writer = Self {
+            file: BufWriter::new(file),
+            path,
+        };
         writer.write_record(&version_event(now.as_secs_f64()))?;
         Ok(writer)
     }
@@ -73,8 +84,14 @@ impl EventWriter {
     /// Writes one event with the scalars `values` (tag, value) at `step`, stamped `wall_time`
     /// (seconds since the Unix epoch), and syncs the file. Values are stored as `f32`, as
     /// TensorBoard's `simple_value` is; NaN and infinities are written as they are.
-    pub fn scalars(&mut self, step: u64, wall_time: f64, values: &[(&str, f64)]) -> anyhow::Result<()> {
-        let step = i64::try_from(step).with_context(|| format!("step {step} does not fit TensorBoard's int64"))?;
+    pub fn scalars(
+        &mut self,
+        step: u64,
+        wall_time: f64,
+        values: &[(&str, f64)],
+    ) -> anyhow::Result<()> {
+        let step = i64::try_from(step)
+            .with_context(|| format!("step {step} does not fit TensorBoard's int64"))?;
         self.write_record(&scalars_event(wall_time, step, values))
     }
 
@@ -83,9 +100,13 @@ impl EventWriter {
         let context = || format!("cannot write {}", self.path.display());
         let length = (data.len() as u64).to_le_bytes();
         self.file.write_all(&length).with_context(context)?;
-        self.file.write_all(&masked_crc(&length).to_le_bytes()).with_context(context)?;
+        self.file
+            .write_all(&masked_crc(&length).to_le_bytes())
+            .with_context(context)?;
         self.file.write_all(data).with_context(context)?;
-        self.file.write_all(&masked_crc(data).to_le_bytes()).with_context(context)?;
+        self.file
+            .write_all(&masked_crc(data).to_le_bytes())
+            .with_context(context)?;
         self.file.flush().with_context(context)?;
         self.file.get_ref().sync_data().with_context(context)
     }
@@ -133,14 +154,21 @@ pub fn row_scalars(row: &ProgressRow) -> Vec<(&'static str, f64)> {
 /// rather than truncating an existing file.
 fn create_new(dir: &Path, base: &str) -> anyhow::Result<(File, PathBuf)> {
     for n in 0..MAX_NAME_TRIES {
-        let path = if n == 0 { dir.join(base) } else { dir.join(format!("{base}.{n}")) };
+        let path = if n == 0 {
+            dir.join(base)
+        } else {
+            dir.join(format!("{base}.{n}"))
+        };
         match OpenOptions::new().write(true).create_new(true).open(&path) {
             Ok(file) => return Ok((file, path)),
             Err(e) if e.kind() == ErrorKind::AlreadyExists => continue,
             Err(e) => return Err(e).with_context(|| format!("cannot create {}", path.display())),
         }
     }
-    anyhow::bail!("{}: {MAX_NAME_TRIES} event files named {base}* already exist", dir.display())
+    anyhow::bail!(
+        "{}: {MAX_NAME_TRIES} event files named {base}* already exist",
+        dir.display()
+    )
 }
 
 /// CRC32C of `bytes`, masked as TFRecord stores it.
@@ -214,7 +242,11 @@ mod tests {
         for &byte in bytes {
             crc ^= u32::from(byte);
             for _ in 0..8 {
-                crc = if crc & 1 == 1 { (crc >> 1) ^ 0x82F6_3B78 } else { crc >> 1 };
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0x82F6_3B78
+                } else {
+                    crc >> 1
+                };
             }
         }
         !crc
@@ -236,9 +268,19 @@ mod tests {
         while at < bytes.len() {
             let length_bytes = &bytes[at..at + 8];
             let length = u64::from_le_bytes(length_bytes.try_into().unwrap()) as usize;
-            assert_eq!(u32_at(bytes, at + 8), reference_masked(length_bytes), "length CRC of record {}", records.len());
+            assert_eq!(
+                u32_at(bytes, at + 8),
+                reference_masked(length_bytes),
+                "length CRC of record {}",
+                records.len()
+            );
             let data = &bytes[at + 12..at + 12 + length];
-            assert_eq!(u32_at(bytes, at + 12 + length), reference_masked(data), "data CRC of record {}", records.len());
+            assert_eq!(
+                u32_at(bytes, at + 12 + length),
+                reference_masked(data),
+                "data CRC of record {}",
+                records.len()
+            );
             records.push(data.to_vec());
             at += 12 + length + 4;
         }
@@ -314,7 +356,9 @@ mod tests {
                 (3, Field::Bytes(b)) => event.file_version = Some(String::from_utf8(b).unwrap()),
                 (5, Field::Bytes(summary)) => {
                     for (number, value) in read_fields(&summary) {
-                        let Field::Bytes(value) = value else { panic!("Summary.value is not a message") };
+                        let Field::Bytes(value) = value else {
+                            panic!("Summary.value is not a message")
+                        };
                         assert_eq!(number, 1, "Summary field");
                         let (mut tag, mut simple) = (None, None);
                         for field in read_fields(&value) {
@@ -334,7 +378,10 @@ mod tests {
     }
 
     fn decode_file(path: &Path) -> Vec<Decoded> {
-        read_records(&std::fs::read(path).unwrap()).iter().map(|r| decode_event(r)).collect()
+        read_records(&std::fs::read(path).unwrap())
+            .iter()
+            .map(|r| decode_event(r))
+            .collect()
     }
 
     #[test]
@@ -348,10 +395,27 @@ mod tests {
     fn writes_the_version_event_then_one_event_per_call() {
         let dir = tempfile::tempdir().unwrap();
         let mut writer = EventWriter::create(&dir.path().join("run")).unwrap();
-        let name = writer.path().file_name().unwrap().to_string_lossy().into_owned();
+        let name = writer
+            .path()
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
         assert!(name.starts_with("events.out.tfevents."), "{name}");
-        writer.scalars(1, 1_700_000_000.5, &[("return/mean", -12.25), ("loss/v", f64::NAN)]).unwrap();
-        writer.scalars(300, 1_700_000_001.0, &[("return/mean", 1e40), ("return/min", -0.1)]).unwrap();
+        writer
+            .scalars(
+                1,
+                1_700_000_000.5,
+                &[("return/mean", -12.25), ("loss/v", f64::NAN)],
+            )
+            .unwrap();
+        writer
+            .scalars(
+                300,
+                1_700_000_001.0,
+                &[("return/mean", 1e40), ("return/min", -0.1)],
+            )
+            .unwrap();
         // Everything is on disk while the writer is still open.
         let events = decode_file(writer.path());
         assert_eq!(events.len(), 3);
@@ -362,7 +426,13 @@ mod tests {
         assert_eq!(events[1].values[1].0, "loss/v");
         assert!(events[1].values[1].1.is_nan());
         assert_eq!(events[2].step, 300);
-        assert_eq!(events[2].values, [("return/mean".to_string(), f32::INFINITY), ("return/min".to_string(), -0.1f32)]);
+        assert_eq!(
+            events[2].values,
+            [
+                ("return/mean".to_string(), f32::INFINITY),
+                ("return/min".to_string(), -0.1f32)
+            ]
+        );
         assert!(events[1..].iter().all(|e| e.file_version.is_none()));
     }
 
@@ -372,7 +442,10 @@ mod tests {
         std::fs::write(dir.path().join("events.out.tfevents.1.host"), b"keep").unwrap();
         let (_, path) = create_new(dir.path(), "events.out.tfevents.1.host").unwrap();
         assert_eq!(path, dir.path().join("events.out.tfevents.1.host.1"));
-        assert_eq!(std::fs::read(dir.path().join("events.out.tfevents.1.host")).unwrap(), b"keep");
+        assert_eq!(
+            std::fs::read(dir.path().join("events.out.tfevents.1.host")).unwrap(),
+            b"keep"
+        );
         // Two writers in the same second get two files.
         let a = EventWriter::create(dir.path()).unwrap();
         let b = EventWriter::create(dir.path()).unwrap();
@@ -428,8 +501,12 @@ mod tests {
         assert_eq!(tags.len(), full.len(), "tags are unique");
 
         let empty = row_scalars(&row(false));
-        assert!(empty.iter().all(|(t, _)| !t.starts_with("return/") && !t.starts_with("bound/")));
-        assert!(empty.iter().any(|(t, v)| *t == "episode/count" && *v == 0.0));
+        assert!(empty
+            .iter()
+            .all(|(t, _)| !t.starts_with("return/") && !t.starts_with("bound/")));
+        assert!(empty
+            .iter()
+            .any(|(t, v)| *t == "episode/count" && *v == 0.0));
         assert_eq!(full.len() - empty.len(), 7);
     }
 }

@@ -26,7 +26,8 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use apo_core::inference::{ActBuffers, HostPolicy, HostValue};
 use apo_core::{
-    ActionKind, BufferLayout, EpisodeStats, Learner, MlpPolicyConfig, RolloutBuffer, UpdateReport, ValueConfig,
+    ActionKind, BufferLayout, EpisodeStats, Learner, MlpPolicyConfig, RolloutBuffer, UpdateReport,
+    ValueConfig,
 };
 use apo_envs::{RunningMeanStd, Space, VecEnv, VecStep};
 use burn::backend::NdArray;
@@ -41,7 +42,9 @@ use crate::tensorboard::{row_scalars, EventWriter};
 
 /// A seed for stream `stream` of epoch `epoch` of a run seeded `seed` (SplitMix64 mixing).
 pub fn derive_seed(seed: u64, epoch: u64, stream: u64) -> u64 {
-    let mut z = seed ^ epoch.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    let mut z = seed
+        ^ epoch.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -56,14 +59,24 @@ pub fn action_kind(space: &Space) -> ActionKind {
 }
 
 /// The policy and value configs of a run for an environment.
-pub fn networks(config: &RunConfig, observation_dim: usize, action: ActionKind) -> (MlpPolicyConfig, ValueConfig) {
+pub fn networks(
+    config: &RunConfig,
+    observation_dim: usize,
+    action: ActionKind,
+) -> (MlpPolicyConfig, ValueConfig) {
     let policy = MlpPolicyConfig {
         observation_dim,
         action,
         hidden: config.hidden.clone(),
         init_log_std: config.init_log_std,
     };
-    (policy, ValueConfig { observation_dim, hidden: config.hidden.clone() })
+    (
+        policy,
+        ValueConfig {
+            observation_dim,
+            hidden: config.hidden.clone(),
+        },
+    )
 }
 
 /// Host copies of a learner's networks, for acting.
@@ -76,10 +89,17 @@ pub struct Actor {
 
 impl Actor {
     /// Copies the learner's current networks to the host.
-    pub fn sync<B: Backend>(learner: &Learner<B, MlpPolicyConfig>, value: &ValueConfig, action: ActionKind) -> Self {
+    pub fn sync<B: Backend>(
+        learner: &Learner<B, MlpPolicyConfig>,
+        value: &ValueConfig,
+        action: ActionKind,
+    ) -> Self {
         let device = Default::default();
         let policy = learner.policy_on::<NdArray>(&device);
-        Self { policy: HostPolicy::new(&policy, action), value: HostValue::new(&learner.value_on::<NdArray>(value, &device)) }
+        Self {
+            policy: HostPolicy::new(&policy, action),
+            value: HostValue::new(&learner.value_on::<NdArray>(value, &device)),
+        }
     }
 }
 
@@ -126,7 +146,11 @@ impl Collector {
             ActionKind::Discrete { n } => n,
         };
         let steps_per_env = config.steps_per_epoch.div_ceil(n);
-        let layout = BufferLayout { observation_dim: obs_dim, action_width: action.width(), dist_width };
+        let layout = BufferLayout {
+            observation_dim: obs_dim,
+            action_width: action.width(),
+            dist_width,
+        };
         Ok(Self {
             obs: vec![0.0; n * obs_dim],
             obs_norm: vec![0.0; n * obs_dim],
@@ -135,7 +159,9 @@ impl Collector {
             act: ActBuffers::default(),
             values: Vec::with_capacity(n),
             buffers: (0..n)
-                .map(|_| RolloutBuffer::new(layout, config.algo.gamma, config.algo.lambda, steps_per_env))
+                .map(|_| {
+                    RolloutBuffer::new(layout, config.algo.gamma, config.algo.lambda, steps_per_env)
+                })
                 .collect(),
             normalizer,
             steps_per_env,
@@ -182,9 +208,16 @@ impl Collector {
         let n = self.envs.num_envs();
         let obs_dim = self.envs.obs_dim();
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 1));
-        self.envs.reset(Some(derive_seed(seed, 0, 0)), &mut self.obs);
+        self.envs
+            .reset(Some(derive_seed(seed, 0, 0)), &mut self.obs);
         let (mut ep_ret, mut ep_len) = (vec![0.0f64; n], vec![0usize; n]);
-        let mut rollout = Rollout { batch: Default::default(), returns: vec![], lengths: vec![], unstable: 0, steps: 0 };
+        let mut rollout = Rollout {
+            batch: Default::default(),
+            returns: vec![],
+            lengths: vec![],
+            unstable: 0,
+            steps: 0,
+        };
         let mut row = vec![0.0f32; obs_dim];
         for t in 0..self.steps_per_env {
             if stop.load(Ordering::Relaxed) {
@@ -198,12 +231,16 @@ impl Collector {
             }
             let mut obs_norm = std::mem::take(&mut self.obs_norm);
             self.normalized(&self.obs, &mut obs_norm);
-            actor.policy.act(&obs_norm, n, false, &mut rng, &mut self.act);
+            actor
+                .policy
+                .act(&obs_norm, n, false, &mut rng, &mut self.act);
             self.values.clear();
-            self.values.extend_from_slice(actor.value.values(&obs_norm, n));
+            self.values
+                .extend_from_slice(actor.value.values(&obs_norm, n));
             self.env_actions.clear();
             self.env_actions.extend_from_slice(&self.act.env_actions);
-            self.envs.step(&self.env_actions, &mut self.obs, &mut self.out);
+            self.envs
+                .step(&self.env_actions, &mut self.obs, &mut self.out);
             rollout.steps += n as u64;
             let (aw, dw) = (self.act.actions.len() / n, self.act.dist.len() / n);
             for i in 0..n {
@@ -224,7 +261,10 @@ impl Collector {
                 let last_value = if step.terminated || step.info.unstable {
                     0.0
                 } else {
-                    let final_obs = self.envs.final_obs(i).unwrap_or(&self.obs[i * obs_dim..(i + 1) * obs_dim]);
+                    let final_obs = self
+                        .envs
+                        .final_obs(i)
+                        .unwrap_or(&self.obs[i * obs_dim..(i + 1) * obs_dim]);
                     self.normalized(final_obs, &mut row);
                     actor.value.values(&row, 1)[0]
                 };
@@ -274,7 +314,12 @@ pub trait Observer {
 
 /// The shapes of `config`'s networks on an environment with `observation_dim` and `action`.
 pub fn shapes(config: &RunConfig, observation_dim: usize, action: ActionKind) -> Shapes {
-    Shapes { observation_dim, action, hidden: config.hidden.clone(), normalize_obs: config.normalize_obs }
+    Shapes {
+        observation_dim,
+        action,
+        hidden: config.hidden.clone(),
+        normalize_obs: config.normalize_obs,
+    }
 }
 
 /// Trains (or, with `resume`, continues) the run in `run_dir` on backend `B`.
@@ -296,12 +341,23 @@ pub fn train<B: Backend>(
     let (obs_dim, action) = (collector.observation_dim(), collector.action());
     let shapes = shapes(config, obs_dim, action);
     let (policy_cfg, value_cfg) = networks(config, obs_dim, action);
-    let mut learner = Learner::<B, _>::new(policy_cfg, action, &value_cfg, config.algo.clone(), device, config.seed)?;
+    let mut learner = Learner::<B, _>::new(
+        policy_cfg,
+        action,
+        &value_cfg,
+        config.algo.clone(),
+        device,
+        config.seed,
+    )?;
     let progress_path = run_dir.join(crate::run_dir::PROGRESS);
     let mut state = TrainState::new(config.normalize_obs.then(|| RunningMeanStd::new(obs_dim)));
     let mut rows = Vec::new();
     if resume {
-        let on_disk = if progress_path.exists() { progress::read(&progress_path)? } else { Vec::new() };
+        let on_disk = if progress_path.exists() {
+            progress::read(&progress_path)?
+        } else {
+            Vec::new()
+        };
         match checkpoint::locate(run_dir, &Which::Latest)? {
             Some(from) => {
                 state = checkpoint::load(&from, &mut learner, &shapes, device)?;
@@ -330,7 +386,11 @@ pub fn train<B: Backend>(
         }
     }
     if state.epoch > config.epochs {
-        bail!("the run has {} epochs done, more than epochs = {}; pass a larger --epochs", state.epoch, config.epochs);
+        bail!(
+            "the run has {} epochs done, more than epochs = {}; pass a larger --epochs",
+            state.epoch,
+            config.epochs
+        );
     }
     collector.set_normalizer(state.normalizer.clone());
     let mut events = EventWriter::create(run_dir)?;
@@ -342,8 +402,11 @@ pub fn train<B: Backend>(
         let seed = derive_seed(config.seed, epoch as u64, 0);
         let steps_before = state.env_steps;
         let rollout_start = Instant::now();
-        let Some(rollout) = collector.collect(&mut actor, seed, stop, &mut |steps| observer.steps(steps_before + steps)) else {
-            checkpoint::save(run_dir, &learner, &state, &shapes, false).context("writing the checkpoint after an interrupt")?;
+        let Some(rollout) = collector.collect(&mut actor, seed, stop, &mut |steps| {
+            observer.steps(steps_before + steps)
+        }) else {
+            checkpoint::save(run_dir, &learner, &state, &shapes, false)
+                .context("writing the checkpoint after an interrupt")?;
             tracing::warn!(epoch = state.epoch, "interrupted; checkpoint written");
             return Ok(TrainEnd::Interrupted { epoch: state.epoch });
         };
@@ -352,7 +415,10 @@ pub fn train<B: Backend>(
         let report = learner.update(&rollout.batch, &mut rng);
         if let Some(what) = non_finite(&report, &learner) {
             let kept = if checkpoint_epoch > 0 {
-                format!("The last good checkpoint (epoch {checkpoint_epoch}) is kept in {}.", checkpoint::dir(run_dir).display())
+                format!(
+                    "The last good checkpoint (epoch {checkpoint_epoch}) is kept in {}.",
+                    checkpoint::dir(run_dir).display()
+                )
             } else {
                 "No epoch had completed, so nothing was saved.".to_string()
             };
@@ -377,7 +443,11 @@ pub fn train<B: Backend>(
             stats.as_ref(),
             rollout.unstable,
             &report,
-            EpochTimes { rollout_s, steps_per_s, time_s: state.elapsed_s },
+            EpochTimes {
+                rollout_s,
+                steps_per_s,
+                time_s: state.elapsed_s,
+            },
         );
         let shown = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| format!("{v:.3}"));
         tracing::info!(
@@ -391,15 +461,24 @@ pub fn train<B: Backend>(
             "epoch done"
         );
         if rollout.unstable > 0 {
-            tracing::warn!(epoch = row.epoch, episodes = rollout.unstable, "episodes ended by simulator instability");
+            tracing::warn!(
+                epoch = row.epoch,
+                episodes = rollout.unstable,
+                "episodes ended by simulator instability"
+            );
         }
         observer.epoch(&row, config.epochs);
         rows.push(row.clone());
         progress::write(&progress_path, &rows)?;
         events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
         let interrupted = stop.load(Ordering::Relaxed);
-        let keep = config.keep_checkpoint_every > 0 && state.epoch.is_multiple_of(config.keep_checkpoint_every);
-        if interrupted || keep || state.epoch.is_multiple_of(config.checkpoint_every) || state.epoch == config.epochs {
+        let keep = config.keep_checkpoint_every > 0
+            && state.epoch.is_multiple_of(config.keep_checkpoint_every);
+        if interrupted
+            || keep
+            || state.epoch.is_multiple_of(config.checkpoint_every)
+            || state.epoch == config.epochs
+        {
             checkpoint::save(run_dir, &learner, &state, &shapes, keep)?;
             checkpoint_epoch = state.epoch;
         }
@@ -412,11 +491,18 @@ pub fn train<B: Backend>(
 
 /// Seconds since the Unix epoch.
 fn unix_time() -> f64 {
-    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64())
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// Checks that `rows` (from `progress.csv`) hold every epoch the checkpoint `state` completed.
-fn check_rows(rows: &[ProgressRow], state: &TrainState, progress_path: &Path, from: &Path) -> anyhow::Result<()> {
+fn check_rows(
+    rows: &[ProgressRow],
+    state: &TrainState,
+    progress_path: &Path,
+    from: &Path,
+) -> anyhow::Result<()> {
     if rows.len() < state.epoch {
         bail!(
             "{} has {} epoch rows but the checkpoint in {} is at epoch {}: the rows of epochs {}..={} are missing \
@@ -432,7 +518,13 @@ fn check_rows(rows: &[ProgressRow], state: &TrainState, progress_path: &Path, fr
     }
     for (i, row) in rows.iter().take(state.epoch).enumerate() {
         if row.epoch != i + 1 {
-            bail!("{}: row {} is epoch {}, expected epoch {}", progress_path.display(), i + 1, row.epoch, i + 1);
+            bail!(
+                "{}: row {} is epoch {}, expected epoch {}",
+                progress_path.display(),
+                i + 1,
+                row.epoch,
+                i + 1
+            );
         }
     }
     if let Some(last) = state.epoch.checked_sub(1).map(|i| &rows[i]) {
@@ -451,7 +543,10 @@ fn check_rows(rows: &[ProgressRow], state: &TrainState, progress_path: &Path, fr
 }
 
 /// What is not finite after an update, if anything: a loss, the KL, the entropy, or a parameter.
-fn non_finite<B: Backend>(report: &UpdateReport, learner: &Learner<B, MlpPolicyConfig>) -> Option<String> {
+fn non_finite<B: Backend>(
+    report: &UpdateReport,
+    learner: &Learner<B, MlpPolicyConfig>,
+) -> Option<String> {
     let scalars = [
         ("loss_pi", report.loss_pi),
         ("loss_v", report.loss_v),

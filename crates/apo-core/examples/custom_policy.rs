@@ -12,8 +12,8 @@
 
 use apo_core::flat::to_host;
 use apo_core::{
-    ActionKind, AlgoConfig, Algorithm, BufferLayout, DistParams, Learner, Policy, PolicyFamily, RolloutBuffer,
-    ValueConfig,
+    ActionKind, AlgoConfig, Algorithm, BufferLayout, DistParams, Learner, Policy, PolicyFamily,
+    RolloutBuffer, ValueConfig,
 };
 use burn::backend::NdArray;
 use burn::module::{Module, Param};
@@ -51,7 +51,11 @@ impl PolicyFamily for LinearGaussianConfig {
 
     fn init<B: Backend>(&self, device: &B::Device) -> LinearGaussian<B> {
         LinearGaussian {
-            weight: Param::from_tensor(Tensor::random([self.obs, self.act], Distribution::Normal(0.0, 0.1), device)),
+            weight: Param::from_tensor(Tensor::random(
+                [self.obs, self.act],
+                Distribution::Normal(0.0, 0.1),
+                device,
+            )),
             bias: Param::from_tensor(Tensor::zeros([self.act], device)),
             log_std: Param::from_tensor(Tensor::full([self.act], -0.5, device)),
         }
@@ -64,13 +68,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     type B = NdArray;
     let device = Default::default();
     let (obs_dim, act_dim, batch) = (2, 2, 1024);
-    let family = LinearGaussianConfig { obs: obs_dim, act: act_dim };
+    let family = LinearGaussianConfig {
+        obs: obs_dim,
+        act: act_dim,
+    };
     let action = ActionKind::Continuous { dim: act_dim };
-    let value = ValueConfig { observation_dim: obs_dim, hidden: vec![16] };
+    let value = ValueConfig {
+        observation_dim: obs_dim,
+        hidden: vec![16],
+    };
     let mut config = AlgoConfig::paper_defaults(Algorithm::Apo);
     config.omega1 = 1e-3;
     let mut learner = Learner::<B, _>::new(family, action, &value, config, &device, 0)?;
-    let layout = BufferLayout { observation_dim: obs_dim, action_width: act_dim, dist_width: 2 * act_dim };
+    let layout = BufferLayout {
+        observation_dim: obs_dim,
+        action_width: act_dim,
+        dist_width: 2 * act_dim,
+    };
     let mut buffer = RolloutBuffer::new(layout, 0.99, 0.97, batch);
     let mut rng = StdRng::seed_from_u64(0);
 
@@ -78,8 +92,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // act with a copy of the current policy on the plain backend
         let policy = learner.policy_on::<B>(&device);
         let critic = learner.value_on::<B>(&value, &device);
-        let obs: Vec<f32> = (0..batch * obs_dim).map(|_| rng.random_range(-1.0..1.0)).collect();
-        let obs_t = Tensor::<B, 2>::from_data(TensorData::new(obs.clone(), [batch, obs_dim]), &device);
+        let obs: Vec<f32> = (0..batch * obs_dim)
+            .map(|_| rng.random_range(-1.0..1.0))
+            .collect();
+        let obs_t =
+            Tensor::<B, 2>::from_data(TensorData::new(obs.clone(), [batch, obs_dim]), &device);
         let DistParams::Gaussian { mean, log_std } = policy.distribution(obs_t.clone()) else {
             unreachable!("a Gaussian policy")
         };
@@ -89,14 +106,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .zip(&log_std_h)
             .map(|(m, s)| (m + s.exp() * rng.sample::<f64, _>(StandardNormal)) as f32)
             .collect();
-        let act_t = Tensor::<B, 2>::from_data(TensorData::new(actions.clone(), [batch, act_dim]), &device);
+        let act_t =
+            Tensor::<B, 2>::from_data(TensorData::new(actions.clone(), [batch, act_dim]), &device);
         let dist = DistParams::Gaussian { mean, log_std };
         let logp = to_host(dist.log_prob(act_t));
         let values = to_host(critic.forward(obs_t));
 
         let mut total = 0.0;
         for i in 0..batch {
-            let (s, a) = (&obs[i * obs_dim..(i + 1) * obs_dim], &actions[i * act_dim..(i + 1) * act_dim]);
+            let (s, a) = (
+                &obs[i * obs_dim..(i + 1) * obs_dim],
+                &actions[i * act_dim..(i + 1) * act_dim],
+            );
             let reward: f32 = (0..act_dim)
                 .map(|j| {
                     let target = TARGET[j][0] * s[0] + TARGET[j][1] * s[1];

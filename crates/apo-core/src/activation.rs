@@ -30,12 +30,20 @@ mod tests {
 
     #[test]
     fn matches_tanh_in_f64_over_the_whole_range() {
-        let xs: Vec<f64> = (-4000..=4000).map(|i| i as f64 * 0.01).chain([-1e30, -700.0, 1e-12, 700.0, 1e30]).collect();
+        let xs: Vec<f64> = (-4000..=4000)
+            .map(|i| i as f64 * 0.01)
+            .chain([-1e30, -700.0, 1e-12, 700.0, 1e30])
+            .collect();
         let device = Default::default();
-        let x = Tensor::<NdArray<f64>, 1>::from_data(TensorData::new(xs.clone(), [xs.len()]), &device);
+        let x =
+            Tensor::<NdArray<f64>, 1>::from_data(TensorData::new(xs.clone(), [xs.len()]), &device);
         let y: Vec<f64> = super::tanh(x).into_data().iter::<f64>().collect();
         for (x, y) in xs.iter().zip(&y) {
-            assert!((y - x.tanh()).abs() <= 4e-16, "tanh({x}) = {y}, libm {}", x.tanh());
+            assert!(
+                (y - x.tanh()).abs() <= 4e-16,
+                "tanh({x}) = {y}, libm {}",
+                x.tanh()
+            );
         }
     }
 }

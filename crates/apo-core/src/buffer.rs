@@ -71,7 +71,14 @@ impl RolloutBuffer {
             adv: Vec::with_capacity(capacity),
             ret: Vec::with_capacity(capacity),
         };
-        Self { layout, gamma, lambda, batch, rewards: Vec::with_capacity(capacity), path_start: 0 }
+        Self {
+            layout,
+            gamma,
+            lambda,
+            batch,
+            rewards: Vec::with_capacity(capacity),
+            path_start: 0,
+        }
     }
 
     /// The sizes this buffer stores.
@@ -93,7 +100,15 @@ impl RolloutBuffer {
     ///
     /// # Panics
     /// If a slice has the wrong length.
-    pub fn store(&mut self, obs: &[f32], action: &[f32], logp: f32, dist: &[f32], value: f32, reward: f32) {
+    pub fn store(
+        &mut self,
+        obs: &[f32],
+        action: &[f32],
+        logp: f32,
+        dist: &[f32],
+        value: f32,
+        reward: f32,
+    ) {
         assert_eq!(obs.len(), self.layout.observation_dim, "observation width");
         assert_eq!(action.len(), self.layout.action_width, "action width");
         assert_eq!(dist.len(), self.layout.dist_width, "distribution width");
@@ -189,7 +204,11 @@ pub fn normalize(x: &mut [f32]) {
     }
     let n = x.len() as f64;
     let mean = x.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
-    let var = x.iter().map(|&v| (f64::from(v) - mean).powi(2)).sum::<f64>() / n;
+    let var = x
+        .iter()
+        .map(|&v| (f64::from(v) - mean).powi(2))
+        .sum::<f64>()
+        / n;
     let std = var.sqrt().max(1e-8);
     for v in x {
         *v = ((f64::from(*v) - mean) / std) as f32;

@@ -27,7 +27,13 @@ pub enum Algorithm {
 
 impl Algorithm {
     /// Every algorithm, in the order `apo list` shows them.
-    pub const ALL: [Algorithm; 5] = [Algorithm::Apo, Algorithm::Papo, Algorithm::Trpo, Algorithm::Ppo, Algorithm::A2c];
+    pub const ALL: [Algorithm; 5] = [
+        Algorithm::Apo,
+        Algorithm::Papo,
+        Algorithm::Trpo,
+        Algorithm::Ppo,
+        Algorithm::A2c,
+    ];
 
     /// The lowercase name used on the command line and in configs.
     pub fn name(self) -> &'static str {
@@ -135,44 +141,121 @@ impl AlgoConfig {
                 target_kl: (algo != Algorithm::A2c).then_some(0.02),
                 minibatch_size: None,
             },
-            value_update: ProximalConfig { lr: 1e-3, iters: 80, target_kl: None, minibatch_size: None },
+            value_update: ProximalConfig {
+                lr: 1e-3,
+                iters: 80,
+                target_kl: None,
+                minibatch_size: None,
+            },
         }
     }
 
     /// Checks every field's range; the error names the first bad field.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        fn check(ok: bool, field: &str, value: impl fmt::Display, rule: &str) -> Result<(), ConfigError> {
+        fn check(
+            ok: bool,
+            field: &str,
+            value: impl fmt::Display,
+            rule: &str,
+        ) -> Result<(), ConfigError> {
             if ok {
                 Ok(())
             } else {
-                Err(ConfigError { field: field.into(), value: value.to_string(), rule: rule.into() })
+                Err(ConfigError {
+                    field: field.into(),
+                    value: value.to_string(),
+                    rule: rule.into(),
+                })
             }
         }
         let finite_pos = |x: f64| x.is_finite() && x > 0.0;
         let finite_nonneg = |x: f64| x.is_finite() && x >= 0.0;
-        check((0.0..1.0).contains(&self.gamma), "gamma", self.gamma, "must be in [0, 1)")?;
-        check((0.0..=1.0).contains(&self.lambda), "lambda", self.lambda, "must be in [0, 1]")?;
+        check(
+            (0.0..1.0).contains(&self.gamma),
+            "gamma",
+            self.gamma,
+            "must be in [0, 1)",
+        )?;
+        check(
+            (0.0..=1.0).contains(&self.lambda),
+            "lambda",
+            self.lambda,
+            "must be in [0, 1]",
+        )?;
         check(finite_nonneg(self.k), "k", self.k, "must be ≥ 0")?;
-        check(finite_nonneg(self.omega1), "omega1", self.omega1, "must be ≥ 0")?;
-        check(finite_nonneg(self.omega2), "omega2", self.omega2, "must be ≥ 0")?;
-        check(self.clip > 0.0 && self.clip < 1.0, "clip", self.clip, "must be in (0, 1)")?;
+        check(
+            finite_nonneg(self.omega1),
+            "omega1",
+            self.omega1,
+            "must be ≥ 0",
+        )?;
+        check(
+            finite_nonneg(self.omega2),
+            "omega2",
+            self.omega2,
+            "must be ≥ 0",
+        )?;
+        check(
+            self.clip > 0.0 && self.clip < 1.0,
+            "clip",
+            self.clip,
+            "must be in (0, 1)",
+        )?;
         let tr = &self.trust_region;
-        check(finite_pos(tr.max_kl), "trust_region.max_kl", tr.max_kl, "must be > 0")?;
-        check(tr.cg_iters > 0, "trust_region.cg_iters", tr.cg_iters, "must be ≥ 1")?;
-        check(finite_nonneg(tr.cg_damping), "trust_region.cg_damping", tr.cg_damping, "must be ≥ 0")?;
-        check(finite_nonneg(tr.cg_residual_tol), "trust_region.cg_residual_tol", tr.cg_residual_tol, "must be ≥ 0")?;
+        check(
+            finite_pos(tr.max_kl),
+            "trust_region.max_kl",
+            tr.max_kl,
+            "must be > 0",
+        )?;
+        check(
+            tr.cg_iters > 0,
+            "trust_region.cg_iters",
+            tr.cg_iters,
+            "must be ≥ 1",
+        )?;
+        check(
+            finite_nonneg(tr.cg_damping),
+            "trust_region.cg_damping",
+            tr.cg_damping,
+            "must be ≥ 0",
+        )?;
+        check(
+            finite_nonneg(tr.cg_residual_tol),
+            "trust_region.cg_residual_tol",
+            tr.cg_residual_tol,
+            "must be ≥ 0",
+        )?;
         check(
             tr.backtrack_coeff > 0.0 && tr.backtrack_coeff < 1.0,
             "trust_region.backtrack_coeff",
             tr.backtrack_coeff,
             "must be in (0, 1)",
         )?;
-        check(tr.backtrack_iters > 0, "trust_region.backtrack_iters", tr.backtrack_iters, "must be ≥ 1")?;
-        for (name, p) in [("policy_update", &self.policy_update), ("value_update", &self.value_update)] {
+        check(
+            tr.backtrack_iters > 0,
+            "trust_region.backtrack_iters",
+            tr.backtrack_iters,
+            "must be ≥ 1",
+        )?;
+        for (name, p) in [
+            ("policy_update", &self.policy_update),
+            ("value_update", &self.value_update),
+        ] {
             check(finite_pos(p.lr), &format!("{name}.lr"), p.lr, "must be > 0")?;
-            check(p.iters > 0, &format!("{name}.iters"), p.iters, "must be ≥ 1")?;
+            check(
+                p.iters > 0,
+                &format!("{name}.iters"),
+                p.iters,
+                "must be ≥ 1",
+            )?;
             if let Some(t) = p.target_kl {
-                check(finite_pos(t), &format!("{name}.target_kl"), t, "must be > 0")?;
+                check(
+                    finite_pos(t),
+                    &format!("{name}.target_kl"),
+                    t,
+                    "must be > 0",
+                )?;
             }
             if let Some(m) = p.minibatch_size {
                 check(m > 0, &format!("{name}.minibatch_size"), m, "must be ≥ 1")?;
@@ -187,14 +270,22 @@ impl AlgoConfig {
             HMaxMode::Hyperparameter => HMax::Fixed(self.omega2),
             HMaxMode::Estimated => HMax::Estimated,
         };
-        ApoParams { k: self.k, omega1: self.omega1, h_max, gamma: self.gamma }
+        ApoParams {
+            k: self.k,
+            omega1: self.omega1,
+            h_max,
+            gamma: self.gamma,
+        }
     }
 
     /// The objective the policy update maximizes.
     pub fn objective(&self) -> Objective {
         match self.algo {
             Algorithm::Apo => Objective::Apo(self.apo_params()),
-            Algorithm::Papo => Objective::Papo { params: self.apo_params(), clip: self.clip },
+            Algorithm::Papo => Objective::Papo {
+                params: self.apo_params(),
+                clip: self.clip,
+            },
             Algorithm::Trpo => Objective::Trpo,
             Algorithm::Ppo => Objective::Ppo { clip: self.clip },
             Algorithm::A2c => Objective::A2c,

@@ -50,9 +50,9 @@ impl<B: Backend> DistParams<B> {
                     .sub_scalar(HALF_LN_2PI * dim)
                     .squeeze_dim(1)
             }
-            DistParams::Categorical { logits } => {
-                (log_softmax(logits.clone(), 1) * actions).sum_dim(1).squeeze_dim(1)
-            }
+            DistParams::Categorical { logits } => (log_softmax(logits.clone(), 1) * actions)
+                .sum_dim(1)
+                .squeeze_dim(1),
         }
     }
 
@@ -61,7 +61,11 @@ impl<B: Backend> DistParams<B> {
         match self {
             DistParams::Gaussian { log_std, .. } => {
                 let dim = log_std.dims()[1] as f64;
-                log_std.clone().sum_dim(1).add_scalar((0.5 + HALF_LN_2PI) * dim).squeeze_dim(1)
+                log_std
+                    .clone()
+                    .sum_dim(1)
+                    .add_scalar((0.5 + HALF_LN_2PI) * dim)
+                    .squeeze_dim(1)
             }
             DistParams::Categorical { logits } => {
                 let logp = log_softmax(logits.clone(), 1);
@@ -80,11 +84,18 @@ impl<B: Backend> DistParams<B> {
     pub fn kl_from(&self, old: &DistParams<B>) -> Tensor<B, 1> {
         match (old, self) {
             (
-                DistParams::Gaussian { mean: m0, log_std: s0 },
-                DistParams::Gaussian { mean: m1, log_std: s1 },
+                DistParams::Gaussian {
+                    mean: m0,
+                    log_std: s0,
+                },
+                DistParams::Gaussian {
+                    mean: m1,
+                    log_std: s1,
+                },
             ) => {
                 let var_ratio = (s0.clone() - s1.clone()).mul_scalar(2.0).exp();
-                let mean_term = (m0.clone() - m1.clone()).square() * s1.clone().mul_scalar(-2.0).exp();
+                let mean_term =
+                    (m0.clone() - m1.clone()).square() * s1.clone().mul_scalar(-2.0).exp();
                 ((s1.clone() - s0.clone()) + (var_ratio + mean_term).mul_scalar(0.5))
                     .sub_scalar(0.5)
                     .sum_dim(1)
@@ -93,7 +104,9 @@ impl<B: Backend> DistParams<B> {
             (DistParams::Categorical { logits: l0 }, DistParams::Categorical { logits: l1 }) => {
                 let logp0 = log_softmax(l0.clone(), 1);
                 let logp1 = log_softmax(l1.clone(), 1);
-                (softmax(l0.clone(), 1) * (logp0 - logp1)).sum_dim(1).squeeze_dim(1)
+                (softmax(l0.clone(), 1) * (logp0 - logp1))
+                    .sum_dim(1)
+                    .squeeze_dim(1)
             }
             _ => panic!("KL between distributions of different families"),
         }
@@ -106,7 +119,9 @@ impl<B: Backend> DistParams<B> {
                 mean: mean.detach(),
                 log_std: log_std.detach(),
             },
-            DistParams::Categorical { logits } => DistParams::Categorical { logits: logits.detach() },
+            DistParams::Categorical { logits } => DistParams::Categorical {
+                logits: logits.detach(),
+            },
         }
     }
 }

@@ -62,8 +62,12 @@ enum Metric<B: Backend> {
 impl<B: Backend> Metric<B> {
     fn new(dist: &DistParams<B>) -> Self {
         match dist {
-            DistParams::Gaussian { log_std, .. } => Metric::Gaussian { inv_var: log_std.clone().mul_scalar(-2.0).exp() },
-            DistParams::Categorical { logits } => Metric::Categorical { probs: softmax(logits.clone(), 1) },
+            DistParams::Gaussian { log_std, .. } => Metric::Gaussian {
+                inv_var: log_std.clone().mul_scalar(-2.0).exp(),
+            },
+            DistParams::Categorical { logits } => Metric::Categorical {
+                probs: softmax(logits.clone(), 1),
+            },
         }
     }
 
@@ -71,12 +75,17 @@ impl<B: Backend> Metric<B> {
     fn apply(&self, t: DistParams<B>) -> Option<DistParams<B>> {
         match (self, t) {
             (Metric::Gaussian { inv_var }, DistParams::Gaussian { mean, log_std }) => {
-                Some(DistParams::Gaussian { mean: mean * inv_var.clone(), log_std: log_std.mul_scalar(2.0) })
+                Some(DistParams::Gaussian {
+                    mean: mean * inv_var.clone(),
+                    log_std: log_std.mul_scalar(2.0),
+                })
             }
             (Metric::Categorical { probs }, DistParams::Categorical { logits }) => {
                 // (diag(p) − p pᵀ) t = p ⊙ (t − pᵀt)
                 let p_t = (probs.clone() * logits.clone()).sum_dim(1);
-                Some(DistParams::Categorical { logits: probs.clone() * (logits - p_t) })
+                Some(DistParams::Categorical {
+                    logits: probs.clone() * (logits - p_t),
+                })
             }
             _ => None,
         }
@@ -86,21 +95,32 @@ impl<B: Backend> Metric<B> {
 /// `d` as constants of `Autodiff<B>` (no copy).
 fn lift<B: Backend>(d: DistParams<B>) -> DistParams<Autodiff<B>> {
     match d {
-        DistParams::Gaussian { mean, log_std } => {
-            DistParams::Gaussian { mean: Tensor::from_inner(mean), log_std: Tensor::from_inner(log_std) }
-        }
-        DistParams::Categorical { logits } => DistParams::Categorical { logits: Tensor::from_inner(logits) },
+        DistParams::Gaussian { mean, log_std } => DistParams::Gaussian {
+            mean: Tensor::from_inner(mean),
+            log_std: Tensor::from_inner(log_std),
+        },
+        DistParams::Categorical { logits } => DistParams::Categorical {
+            logits: Tensor::from_inner(logits),
+        },
     }
 }
 
 /// `Σ_s ⟨u_s, d_s⟩` → `[1]`; `Err` with a zero that depends on `d` when the families differ.
 fn pairing<B: Backend>(d: DistParams<B>, u: DistParams<B>) -> Result<Tensor<B, 1>, Tensor<B, 1>> {
     match (d, u) {
-        (DistParams::Gaussian { mean, log_std }, DistParams::Gaussian { mean: u_mean, log_std: u_log_std }) => {
-            Ok((mean * u_mean).sum() + (log_std * u_log_std).sum())
+        (
+            DistParams::Gaussian { mean, log_std },
+            DistParams::Gaussian {
+                mean: u_mean,
+                log_std: u_log_std,
+            },
+        ) => Ok((mean * u_mean).sum() + (log_std * u_log_std).sum()),
+        (DistParams::Categorical { logits }, DistParams::Categorical { logits: u_logits }) => {
+            Ok((logits * u_logits).sum())
         }
-        (DistParams::Categorical { logits }, DistParams::Categorical { logits: u_logits }) => Ok((logits * u_logits).sum()),
-        (DistParams::Gaussian { mean: d, .. } | DistParams::Categorical { logits: d }, _) => Err(d.sum().mul_scalar(0.0)),
+        (DistParams::Gaussian { mean: d, .. } | DistParams::Categorical { logits: d }, _) => {
+            Err(d.sum().mul_scalar(0.0))
+        }
     }
 }
 

@@ -42,7 +42,10 @@ impl<B: Backend> ModuleMapper<B> for Distribute<B> {
         let start = self.offset;
         self.offset += n;
         let dims: [usize; D] = std::array::from_fn(|i| shape[i]);
-        Param::initialized(param.id, self.theta.clone().slice(start..start + n).reshape(dims))
+        Param::initialized(
+            param.id,
+            self.theta.clone().slice(start..start + n).reshape(dims),
+        )
     }
 }
 
@@ -58,7 +61,10 @@ pub fn unflatten<B: Backend, M: Module<B>>(module: M, theta: Tensor<B, 1>) -> M 
     let total = theta.dims()[0];
     let mut distribute = Distribute { theta, offset: 0 };
     let module = module.map(&mut distribute);
-    assert_eq!(distribute.offset, total, "flat parameter vector has the wrong length");
+    assert_eq!(
+        distribute.offset, total,
+        "flat parameter vector has the wrong length"
+    );
     module
 }
 
@@ -69,5 +75,8 @@ pub fn to_host<B: Backend, const D: usize>(tensor: Tensor<B, D>) -> Vec<f64> {
 
 /// A `[len]` tensor on `device` from host values.
 pub fn from_host<B: Backend>(values: &[f64], device: &B::Device) -> Tensor<B, 1> {
-    Tensor::from_data(burn::tensor::TensorData::new(values.to_vec(), [values.len()]), device)
+    Tensor::from_data(
+        burn::tensor::TensorData::new(values.to_vec(), [values.len()]),
+        device,
+    )
 }

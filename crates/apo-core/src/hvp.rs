@@ -16,7 +16,12 @@ pub type Autodiff2<B> = Autodiff<Autodiff<B>>;
 
 /// `(f(θ), ∇_θ f(θ))` at `theta` (`[num_params]`), with `f` given the module whose
 /// parameters are slices of θ. `f` returns a `[1]` tensor.
-pub fn gradient<AB, M>(template: &M, theta: &[f64], device: &AB::Device, f: impl FnOnce(&M) -> Tensor<AB, 1>) -> (f64, Vec<f64>)
+pub fn gradient<AB, M>(
+    template: &M,
+    theta: &[f64],
+    device: &AB::Device,
+    f: impl FnOnce(&M) -> Tensor<AB, 1>,
+) -> (f64, Vec<f64>)
 where
     AB: AutodiffBackend,
     M: Module<AB>,
@@ -25,7 +30,10 @@ where
     let module = unflatten(template.clone(), leaf.clone());
     let value = f(&module);
     let grads = value.backward();
-    let g = leaf.grad(&grads).map(to_host).unwrap_or_else(|| vec![0.0; theta.len()]);
+    let g = leaf
+        .grad(&grads)
+        .map(to_host)
+        .unwrap_or_else(|| vec![0.0; theta.len()]);
     (to_host(value)[0], g)
 }
 
@@ -52,5 +60,8 @@ where
     };
     let gv = (g * from_host::<Autodiff<B>>(v, device)).sum();
     let grads = gv.backward();
-    inner.grad(&grads).map(to_host).unwrap_or_else(|| vec![0.0; theta.len()])
+    inner
+        .grad(&grads)
+        .map(to_host)
+        .unwrap_or_else(|| vec![0.0; theta.len()])
 }

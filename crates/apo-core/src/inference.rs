@@ -41,9 +41,17 @@ impl HostMlp {
         let layers = mlp
             .host_layers()
             .into_iter()
-            .map(|(weight, bias)| HostLayer { input: weight.len() / bias.len(), output: bias.len(), weight, bias })
+            .map(|(weight, bias)| HostLayer {
+                input: weight.len() / bias.len(),
+                output: bias.len(),
+                weight,
+                bias,
+            })
             .collect();
-        Self { layers, scratch: [Vec::new(), Vec::new()] }
+        Self {
+            layers,
+            scratch: [Vec::new(), Vec::new()],
+        }
     }
 
     /// Input width.
@@ -111,8 +119,15 @@ pub struct HostPolicy {
 impl HostPolicy {
     /// Copies `policy` (whose actions are `action`) to the host.
     pub fn new<B: Backend>(policy: &MlpPolicy<B>, action: ActionKind) -> Self {
-        let log_std = policy.log_std.as_ref().map(|p| p.val().into_data().iter::<f32>().collect());
-        Self { net: HostMlp::from_mlp(&policy.net), log_std, action }
+        let log_std = policy
+            .log_std
+            .as_ref()
+            .map(|p| p.val().into_data().iter::<f32>().collect());
+        Self {
+            net: HostMlp::from_mlp(&policy.net),
+            log_std,
+            action,
+        }
     }
 
     /// Width of the distribution parameters per row.
@@ -133,7 +148,14 @@ impl HostPolicy {
 
     /// Acts in `n` states `obs: [n, observation_dim]`: samples (or, if `deterministic`,
     /// takes the mode) and fills `out`.
-    pub fn act(&mut self, obs: &[f32], n: usize, deterministic: bool, rng: &mut impl Rng, out: &mut ActBuffers) {
+    pub fn act(
+        &mut self,
+        obs: &[f32],
+        n: usize,
+        deterministic: bool,
+        rng: &mut impl Rng,
+        out: &mut ActBuffers,
+    ) {
         let width = self.action.width();
         let (dist_width, env_width) = (self.dist_width(), self.env_width());
         out.actions.resize(n * width, 0.0);
@@ -151,7 +173,11 @@ impl HostPolicy {
                     dist[width..].copy_from_slice(log_std);
                     let mut logp = 0.0;
                     for ((a, &mean), &ls) in action.iter_mut().zip(y).zip(log_std) {
-                        let eps: f32 = if deterministic { 0.0 } else { rng.sample(StandardNormal) };
+                        let eps: f32 = if deterministic {
+                            0.0
+                        } else {
+                            rng.sample(StandardNormal)
+                        };
                         *a = mean + ls.exp() * eps;
                         logp += -0.5 * eps * eps - ls - HALF_LN_2PI;
                     }
@@ -163,17 +189,23 @@ impl HostPolicy {
                     let max = y.iter().copied().fold(f32::NEG_INFINITY, f32::max);
                     let log_z = max + y.iter().map(|l| (l - max).exp()).sum::<f32>().ln();
                     let choice = if deterministic {
-                        y.iter().enumerate().fold(0, |best, (i, &l)| if l > y[best] { i } else { best })
+                        y.iter()
+                            .enumerate()
+                            .fold(0, |best, (i, &l)| if l > y[best] { i } else { best })
                     } else {
                         let u: f32 = rng.random();
                         let mut acc = 0.0;
-                        y.iter().position(|&l| {
-                            acc += (l - log_z).exp();
-                            u < acc
-                        })
-                        .unwrap_or(width - 1)
+                        y.iter()
+                            .position(|&l| {
+                                acc += (l - log_z).exp();
+                                u < acc
+                            })
+                            .unwrap_or(width - 1)
                     };
-                    action.iter_mut().enumerate().for_each(|(i, a)| *a = if i == choice { 1.0 } else { 0.0 });
+                    action
+                        .iter_mut()
+                        .enumerate()
+                        .for_each(|(i, a)| *a = if i == choice { 1.0 } else { 0.0 });
                     out.env_actions[r] = choice as f32;
                     y[choice] - log_z
                 }
@@ -191,7 +223,9 @@ pub struct HostValue {
 impl HostValue {
     /// Copies `value` to the host.
     pub fn new<B: Backend>(value: &ValueNet<B>) -> Self {
-        Self { net: HostMlp::from_mlp(&value.net) }
+        Self {
+            net: HostMlp::from_mlp(&value.net),
+        }
     }
 
     /// `V(s)` for `obs: [n, observation_dim]` → `[n]`.

@@ -25,7 +25,8 @@ use crate::value::{ValueConfig, ValueNet};
 type Ad<B> = Autodiff<B>;
 
 /// The Adam state of the policy of family `F` on `Autodiff<B>`.
-pub type PolicyAdam<B, F> = OptimizerAdaptor<Adam, <F as PolicyFamily>::Policy<Autodiff<B>>, Autodiff<B>>;
+pub type PolicyAdam<B, F> =
+    OptimizerAdaptor<Adam, <F as PolicyFamily>::Policy<Autodiff<B>>, Autodiff<B>>;
 
 /// The Adam state of the value network on `Autodiff<B>`.
 pub type ValueAdam<B> = OptimizerAdaptor<Adam, ValueNet<Autodiff<B>>, Autodiff<B>>;
@@ -98,7 +99,9 @@ where
             // Burn's backends draw initial weights from one process-wide RNG: seed it and run
             // every lazy initializer (by reading the parameters) while holding a lock, so that
             // learners built concurrently with the same seed get the same weights.
-            let _guard = INIT_LOCK.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            let _guard = INIT_LOCK
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
             B::seed(device, seed);
             let policy = family.init::<Ad<B>>(device);
             let value = value.init::<Ad<B>>(device);
@@ -139,12 +142,18 @@ where
 
     /// A copy of the current policy on backend `B2` (e.g. NdArray for rollouts).
     pub fn policy_on<B2: Backend>(&self, device: &B2::Device) -> F::Policy<B2> {
-        unflatten(self.family.init::<B2>(device), from_host::<B2>(&self.policy_params(), device))
+        unflatten(
+            self.family.init::<B2>(device),
+            from_host::<B2>(&self.policy_params(), device),
+        )
     }
 
     /// A copy of the current value network on backend `B2`, built from `value`'s sizes.
     pub fn value_on<B2: Backend>(&self, value: &ValueConfig, device: &B2::Device) -> ValueNet<B2> {
-        unflatten(value.init::<B2>(device), from_host::<B2>(&self.value_params(), device))
+        unflatten(
+            value.init::<B2>(device),
+            from_host::<B2>(&self.value_params(), device),
+        )
     }
 
     /// The policy and value networks (for checkpoints).
@@ -153,9 +162,7 @@ where
     }
 
     /// The optimizers (for checkpoints).
-    pub fn optimizers(
-        &self,
-    ) -> (&PolicyAdam<B, F>, &ValueAdam<B>) {
+    pub fn optimizers(&self) -> (&PolicyAdam<B, F>, &ValueAdam<B>) {
         (&self.policy_optim, &self.value_optim)
     }
 
@@ -180,7 +187,10 @@ where
         let objective = self.config.objective();
         let tb = TensorBatch::<B>::new(batch, self.action, &self.device);
         let theta = self.policy_params();
-        let before = unflatten(self.family.init::<B>(&self.device), from_host::<B>(&theta, &self.device));
+        let before = unflatten(
+            self.family.init::<B>(&self.device),
+            from_host::<B>(&theta, &self.device),
+        );
         let dist = before.distribution(tb.obs.clone());
         let entropy = to_host(dist.entropy().mean())[0];
         let terms = objective.evaluate(&dist, &tb);
@@ -188,7 +198,13 @@ where
 
         let tb1 = tb.lift::<Ad<B>>();
         let (line_search, proximal) = if self.config.algo.is_trust_region() {
-            let report = trust_region_step(&self.family, &objective, &theta, &tb, &self.config.trust_region);
+            let report = trust_region_step(
+                &self.family,
+                &objective,
+                &theta,
+                &tb,
+                &self.config.trust_region,
+            );
             let leaf = from_host::<Ad<B>>(&report.theta, &self.device);
             self.policy = unflatten(self.policy.clone(), leaf);
             (Some(report.outcome), None)
@@ -207,13 +223,23 @@ where
         };
         let policy_update_s = start.elapsed().as_secs_f64();
         let value_start = std::time::Instant::now();
-        let (value, value_report) =
-            value_update(self.value.clone(), &mut self.value_optim, &tb1, &self.config.value_update, rng);
+        let (value, value_report) = value_update(
+            self.value.clone(),
+            &mut self.value_optim,
+            &tb1,
+            &self.config.value_update,
+            rng,
+        );
         self.value = value;
         let value_update_s = value_start.elapsed().as_secs_f64();
 
         let after = self.policy_on::<B>(&self.device);
-        let kl = to_host(after.distribution(tb.obs.clone()).kl_from(&tb.dist_old).mean())[0];
+        let kl = to_host(
+            after
+                .distribution(tb.obs.clone())
+                .kl_from(&tb.dist_old)
+                .mean(),
+        )[0];
         UpdateReport {
             loss_pi: -to_host(terms.objective)[0],
             mean_surr: to_host(terms.mean_surr)[0],

@@ -80,7 +80,8 @@ mod tests {
     #[test]
     fn episode_stats_by_hand() {
         // returns 1, 2, 6: mean 3, var (4 + 1 + 9) / 3 = 14/3
-        let s = EpisodeStats::from_episodes(&[1.0, 2.0, 6.0], &[10, 20, 30], 0.5).expect("episodes");
+        let s =
+            EpisodeStats::from_episodes(&[1.0, 2.0, 6.0], &[10, 20, 30], 0.5).expect("episodes");
         assert_eq!(s.count, 3);
         assert!((s.ret_mean - 3.0).abs() < 1e-12);
         assert!((s.ret_std - (14.0f64 / 3.0).sqrt()).abs() < 1e-12);
@@ -92,7 +93,10 @@ mod tests {
 
     #[test]
     fn epoch_averages_and_normalized_score() {
-        assert_eq!(average_over_epochs(&[1.0, 2.0, 3.0, 4.0], Some(2)), Some(3.5));
+        assert_eq!(
+            average_over_epochs(&[1.0, 2.0, 3.0, 4.0], Some(2)),
+            Some(3.5)
+        );
         assert_eq!(average_over_epochs(&[1.0, 2.0, 3.0, 4.0], None), Some(2.5));
         assert_eq!(average_over_epochs(&[1.0], Some(20)), Some(1.0));
         assert_eq!(average_over_epochs(&[], None), None);

@@ -113,7 +113,12 @@ pub struct MlpPolicyConfig {
 impl MlpPolicyConfig {
     /// The paper's architecture for the given sizes.
     pub fn new(observation_dim: usize, action: ActionKind) -> Self {
-        Self { observation_dim, action, hidden: vec![64, 64], init_log_std: -0.5 }
+        Self {
+            observation_dim,
+            action,
+            hidden: vec![64, 64],
+            init_log_std: -0.5,
+        }
     }
 }
 
@@ -163,9 +168,11 @@ impl PolicyFamily for MlpPolicyConfig {
         let out = self.action.width();
         let net = Mlp::new(self.observation_dim, &self.hidden, out, device);
         let log_std = match self.action {
-            ActionKind::Continuous { dim } => {
-                Some(Param::from_tensor(Tensor::full([dim], self.init_log_std, device)))
-            }
+            ActionKind::Continuous { dim } => Some(Param::from_tensor(Tensor::full(
+                [dim],
+                self.init_log_std,
+                device,
+            ))),
             ActionKind::Discrete { .. } => None,
         };
         MlpPolicy { net, log_std }

@@ -41,7 +41,11 @@ pub struct ProximalReport {
 
 /// The (mini)batches of one pass: `batch` split into shuffled chunks of `size` rows, or
 /// the whole batch when `size` is `None` or not smaller than the batch.
-fn split<AB: AutodiffBackend>(batch: &TensorBatch<AB>, size: Option<usize>, rng: &mut impl Rng) -> Vec<TensorBatch<AB>> {
+fn split<AB: AutodiffBackend>(
+    batch: &TensorBatch<AB>,
+    size: Option<usize>,
+    rng: &mut impl Rng,
+) -> Vec<TensorBatch<AB>> {
     let n = batch.len();
     match size.filter(|&s| s > 0 && s < n) {
         None => vec![batch.clone()],
@@ -68,7 +72,11 @@ where
     P: Policy<AB> + AutodiffModule<AB>,
     O: Optimizer<P, AB>,
 {
-    let mut report = ProximalReport { steps: 0, stopped_early: false, approx_kl: 0.0 };
+    let mut report = ProximalReport {
+        steps: 0,
+        stopped_early: false,
+        approx_kl: 0.0,
+    };
     for _ in 0..config.iters {
         for part in &split(batch, config.minibatch_size, rng) {
             let dist = policy.distribution(part.obs.clone());
@@ -111,7 +119,11 @@ where
     AB: AutodiffBackend,
     O: Optimizer<ValueNet<AB>, AB>,
 {
-    let mse = |v: &ValueNet<AB>, part: &TensorBatch<AB>| (v.forward(part.obs.clone()) - part.ret.clone()).square().mean();
+    let mse = |v: &ValueNet<AB>, part: &TensorBatch<AB>| {
+        (v.forward(part.obs.clone()) - part.ret.clone())
+            .square()
+            .mean()
+    };
     let loss_before = to_host(mse(&value, batch).detach())[0];
     let mut loss_after = loss_before;
     for _ in 0..config.iters {
@@ -122,5 +134,11 @@ where
             value = optim.step(config.lr, value, grads);
         }
     }
-    (value, ValueReport { loss_before, loss_after })
+    (
+        value,
+        ValueReport {
+            loss_before,
+            loss_after,
+        },
+    )
 }

@@ -75,7 +75,10 @@ impl<B: Backend> TensorBatch<B> {
     pub fn select(&self, indices: &[usize]) -> Self {
         let device = self.adv.device();
         let idx = Tensor::<B, 1, burn::tensor::Int>::from_data(
-            TensorData::new(indices.iter().map(|&i| i as i64).collect::<Vec<_>>(), [indices.len()]),
+            TensorData::new(
+                indices.iter().map(|&i| i as i64).collect::<Vec<_>>(),
+                [indices.len()],
+            ),
             &device,
         );
         self.map(&Select(idx))
@@ -89,10 +92,13 @@ impl<B: Backend> TensorBatch<B> {
     /// Applies `f` to every field.
     fn map<B2: Backend>(&self, f: &impl FieldMap<B, B2>) -> TensorBatch<B2> {
         let dist_old = match &self.dist_old {
-            DistParams::Gaussian { mean, log_std } => {
-                DistParams::Gaussian { mean: f.two(mean), log_std: f.two(log_std) }
-            }
-            DistParams::Categorical { logits } => DistParams::Categorical { logits: f.two(logits) },
+            DistParams::Gaussian { mean, log_std } => DistParams::Gaussian {
+                mean: f.two(mean),
+                log_std: f.two(log_std),
+            },
+            DistParams::Categorical { logits } => DistParams::Categorical {
+                logits: f.two(logits),
+            },
         };
         TensorBatch {
             obs: f.two(&self.obs),

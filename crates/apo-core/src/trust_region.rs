@@ -94,7 +94,11 @@ pub fn conjugate_gradient(
         r_dot = new_r_dot;
         iterations += 1;
     }
-    CgSolution { x, iterations, residual_sq: r_dot }
+    CgSolution {
+        x,
+        iterations,
+        residual_sq: r_dot,
+    }
 }
 
 /// `x · y`.
@@ -145,7 +149,12 @@ pub struct TrustRegionReport {
 }
 
 /// Mean KL(π_j ‖ π_θ) and the objective at `theta`, without gradients.
-pub fn evaluate<B, F>(family: &F, objective: &Objective, theta: &[f64], batch: &TensorBatch<B>) -> (f64, f64)
+pub fn evaluate<B, F>(
+    family: &F,
+    objective: &Objective,
+    theta: &[f64],
+    batch: &TensorBatch<B>,
+) -> (f64, f64)
 where
     B: Backend,
     F: PolicyFamily,
@@ -172,9 +181,12 @@ where
 {
     let device = batch.adv.device();
     let batch1 = batch.lift::<Autodiff<B>>();
-    let (objective_before, g) = gradient(&family.init::<Autodiff<B>>(&device), theta, &device, |p| {
-        objective.evaluate(&p.distribution(batch1.obs.clone()), &batch1).objective
-    });
+    let (objective_before, g) =
+        gradient(&family.init::<Autodiff<B>>(&device), theta, &device, |p| {
+            objective
+                .evaluate(&p.distribution(batch1.obs.clone()), &batch1)
+                .objective
+        });
 
     // θ_j is fixed during the whole solve: both operators are prepared once
     let fisher = FisherOperator::new(family, theta, batch.obs.clone(), &batch.dist_old);
@@ -183,7 +195,9 @@ where
     let fvp = |v: &[f64]| -> Vec<f64> {
         let mut fv = fisher.apply(v).unwrap_or_else(|| {
             hessian_vector_product::<B, _>(&template2, theta, v, &device, |p| {
-                p.distribution(batch2.obs.clone()).kl_from(&batch2.dist_old).mean()
+                p.distribution(batch2.obs.clone())
+                    .kl_from(&batch2.dist_old)
+                    .mean()
             })
         });
         axpy(config.cg_damping, v, &mut fv);
@@ -209,7 +223,11 @@ where
 
     let mut fraction = 1.0;
     for r#try in 0..config.backtrack_iters {
-        let candidate: Vec<f64> = theta.iter().zip(&full_step).map(|(t, s)| t + fraction * s).collect();
+        let candidate: Vec<f64> = theta
+            .iter()
+            .zip(&full_step)
+            .map(|(t, s)| t + fraction * s)
+            .collect();
         let (kl, objective_after) = evaluate(family, objective, &candidate, batch);
         if kl <= config.max_kl && objective_after >= objective_before {
             return TrustRegionReport {

@@ -19,7 +19,9 @@ pub struct ValueConfig {
 impl ValueConfig {
     /// The value network on `device`.
     pub fn init<B: Backend>(&self, device: &B::Device) -> ValueNet<B> {
-        ValueNet { net: Mlp::new(self.observation_dim, &self.hidden, 1, device) }
+        ValueNet {
+            net: Mlp::new(self.observation_dim, &self.hidden, 1, device),
+        }
     }
 }
 

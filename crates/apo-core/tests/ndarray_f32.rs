@@ -51,7 +51,10 @@ fn hvp_matches_finite_differences_ndarray_f32() {
     let cases = hvp_cases();
     let refs: Vec<Vec<f64>> = cases.iter().map(|c| c.reference_fd_of_value()).collect();
     let errors = check_hvp::<F32>(&device(), 1e-4, &cases, &refs);
-    print_errors("HVP relative error, NdArray<f32> vs f64 mixed FD of the value", &errors);
+    print_errors(
+        "HVP relative error, NdArray<f32> vs f64 mixed FD of the value",
+        &errors,
+    );
 }
 
 #[test]
@@ -63,5 +66,8 @@ fn jvp_matches_finite_differences_ndarray_f32() {
 #[test]
 fn fisher_product_matches_explicit_fisher_ndarray_f32() {
     let errors = check_fisher_vs_explicit::<F32>(&device(), 1e-4);
-    print_errors("F v relative error, NdArray<f32> vs explicit Jᵀ M J / N (f64 FD Jacobian)", &errors);
+    print_errors(
+        "F v relative error, NdArray<f32> vs explicit Jᵀ M J / N (f64 FD Jacobian)",
+        &errors,
+    );
 }

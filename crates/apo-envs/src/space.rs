@@ -22,7 +22,10 @@ pub enum Space {
 impl Space {
     /// A box with the same bounds `[low, high]` in each of `dim` dimensions.
     pub fn uniform_box(dim: usize, low: f32, high: f32) -> Self {
-        Space::Box { low: vec![low; dim], high: vec![high; dim] }
+        Space::Box {
+            low: vec![low; dim],
+            high: vec![high; dim],
+        }
     }
 
     /// The number of reals a value of this space takes in a flat buffer:
@@ -39,10 +42,16 @@ impl Space {
         match self {
             Space::Box { low, high } => {
                 value.len() == low.len()
-                    && value.iter().zip(low.iter().zip(high)).all(|(v, (l, h))| *v >= *l && *v <= *h)
+                    && value
+                        .iter()
+                        .zip(low.iter().zip(high))
+                        .all(|(v, (l, h))| *v >= *l && *v <= *h)
             }
             Space::Discrete { n } => {
-                value.len() == 1 && value[0] >= 0.0 && value[0].fract() == 0.0 && (value[0] as usize) < *n
+                value.len() == 1
+                    && value[0] >= 0.0
+                    && value[0].fract() == 0.0
+                    && (value[0] as usize) < *n
             }
         }
     }

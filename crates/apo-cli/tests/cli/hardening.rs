@@ -10,7 +10,17 @@ use super::{apo, fails, ok, path, timeless};
 /// A one-epoch CartPole run of 200 steps in `dir` (`extra` appended).
 fn small(dir: &Path, extra: &[&str]) -> String {
     let mut args = vec![
-        "train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "1", "--steps-per-epoch", "200", "--quiet", "--out",
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
         path(dir),
     ];
     args.extend_from_slice(extra);
@@ -29,7 +39,17 @@ fn spawn(args: &[&str]) -> Child {
 /// A 500-epoch PPO run on CartPole in `dir`, to be stopped by the test.
 fn long_run(dir: &Path) -> Child {
     spawn(&[
-        "train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "500", "--steps-per-epoch", "200", "--quiet", "--out",
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "500",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
         path(dir),
     ])
 }
@@ -37,13 +57,20 @@ fn long_run(dir: &Path) -> Child {
 fn wait_for(file: &Path) {
     let deadline = Instant::now() + Duration::from_secs(300);
     while !file.exists() {
-        assert!(Instant::now() < deadline, "{} did not appear in time", file.display());
+        assert!(
+            Instant::now() < deadline,
+            "{} did not appear in time",
+            file.display()
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
 }
 
 fn signal(child: &Child, name: &str) {
-    let status = Command::new("kill").args([&format!("-{name}"), &child.id().to_string()]).status().expect("kill");
+    let status = Command::new("kill")
+        .args([&format!("-{name}"), &child.id().to_string()])
+        .status()
+        .expect("kill");
     assert!(status.success());
 }
 
@@ -73,21 +100,57 @@ fn force_replaces_only_run_directories_and_keeps_foreign_files() {
     let notes = tmp.path().join("notes");
     std::fs::create_dir(&notes).expect("mkdir");
     std::fs::write(notes.join("thesis.txt"), "years of work").expect("write");
-    let err = fails(&["train", "--algo", "ppo", "--env", "CartPole-v1", "--out", path(&notes), "--force", "--quiet"]);
-    assert!(err.contains("not one") && err.contains("nothing in it was touched"), "{err}");
-    assert_eq!(std::fs::read_to_string(notes.join("thesis.txt")).expect("kept"), "years of work");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--out",
+        path(&notes),
+        "--force",
+        "--quiet",
+    ]);
+    assert!(
+        err.contains("not one") && err.contains("nothing in it was touched"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(notes.join("thesis.txt")).expect("kept"),
+        "years of work"
+    );
 
     let run = tmp.path().join("run");
     small(&run, &[]);
     std::fs::write(run.join("curves.png"), "a plot the user made").expect("write");
     let out = apo(&[
-        "train", "--algo", "a2c", "--env", "CartPole-v1", "--epochs", "1", "--steps-per-epoch", "200", "--quiet", "--out",
-        path(&run), "--force",
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
+        path(&run),
+        "--force",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(String::from_utf8_lossy(&out.stderr).contains("kept what apo did not create"));
-    assert_eq!(std::fs::read_to_string(run.join("curves.png")).expect("kept"), "a plot the user made");
-    assert!(std::fs::read_to_string(run.join("config.toml")).expect("config").contains("algo = \"a2c\""));
+    assert_eq!(
+        std::fs::read_to_string(run.join("curves.png")).expect("kept"),
+        "a plot the user made"
+    );
+    assert!(std::fs::read_to_string(run.join("config.toml"))
+        .expect("config")
+        .contains("algo = \"a2c\""));
 }
 
 #[test]
@@ -107,20 +170,45 @@ fn resume_with_epochs_records_the_new_target() {
 fn resume_refuses_when_progress_and_checkpoint_disagree() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
-    let mut args = vec!["train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "2", "--steps-per-epoch", "200"];
+    let mut args = vec![
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "2",
+        "--steps-per-epoch",
+        "200",
+    ];
     args.extend(["--quiet", "--out", path(&run)]);
     ok(&args);
     let progress = run.join("progress.csv");
     let saved = std::fs::read(&progress).expect("progress");
-    let header = String::from_utf8_lossy(&saved).lines().next().expect("header").to_string() + "\n";
-    for (case, content) in [("missing", None), ("empty", Some(String::new())), ("header only", Some(header))] {
+    let header = String::from_utf8_lossy(&saved)
+        .lines()
+        .next()
+        .expect("header")
+        .to_string()
+        + "\n";
+    for (case, content) in [
+        ("missing", None),
+        ("empty", Some(String::new())),
+        ("header only", Some(header)),
+    ] {
         match &content {
             None => std::fs::remove_file(&progress).expect("rm"),
             Some(text) => std::fs::write(&progress, text).expect("write"),
         }
         let err = fails(&["train", "--resume", path(&run), "--epochs", "3", "--quiet"]);
-        assert!(err.contains("rows of epochs 1..=2 are missing"), "{case}: {err}");
-        assert!(!err.contains("--force"), "{case}: must not advise --force: {err}");
+        assert!(
+            err.contains("rows of epochs 1..=2 are missing"),
+            "{case}: {err}"
+        );
+        assert!(
+            !err.contains("--force"),
+            "{case}: must not advise --force: {err}"
+        );
         std::fs::write(&progress, &saved).expect("restore");
     }
     std::fs::remove_file(run.join("checkpoints/latest/state.json")).expect("rm state");
@@ -136,13 +224,23 @@ fn damaged_or_foreign_checkpoint_files_are_named() {
     let run = tmp.path().join("run");
     small(&run, &["--set", "normalize_obs=true"]);
     let other = tmp.path().join("other");
-    small(&other, &["--set", "hidden=[32]", "--set", "normalize_obs=true"]);
+    small(
+        &other,
+        &["--set", "hidden=[32]", "--set", "normalize_obs=true"],
+    );
     let latest = run.join("checkpoints/latest");
     for file in ["policy.mpk", "value.mpk", "value_optim.mpk", "state.json"] {
         let original = std::fs::read(latest.join(file)).expect("read");
         // a file of another run's networks (another shape)
-        std::fs::copy(other.join("checkpoints/latest").join(file), latest.join(file)).expect("copy");
-        for args in [vec!["train", "--resume", path(&run), "--epochs", "2", "--quiet"], vec!["eval", "--run", path(&run)]] {
+        std::fs::copy(
+            other.join("checkpoints/latest").join(file),
+            latest.join(file),
+        )
+        .expect("copy");
+        for args in [
+            vec!["train", "--resume", path(&run), "--epochs", "2", "--quiet"],
+            vec!["eval", "--run", path(&run)],
+        ] {
             let err = fails(&args);
             assert!(err.contains(&format!("{file} is corrupt")), "{file}: {err}");
         }
@@ -157,9 +255,16 @@ fn damaged_or_foreign_checkpoint_files_are_named() {
     }
     // a whole checkpoint of other shapes, or config.toml edited under a checkpoint
     let config = std::fs::read_to_string(run.join("config.toml")).expect("config");
-    std::fs::write(run.join("config.toml"), config.replace("hidden = [\n    64,\n    64,\n]", "hidden = [32]")).expect("edit");
+    std::fs::write(
+        run.join("config.toml"),
+        config.replace("hidden = [\n    64,\n    64,\n]", "hidden = [32]"),
+    )
+    .expect("edit");
     let err = fails(&["eval", "--run", path(&run)]);
-    assert!(err.contains("do not fit this run") && err.contains("hidden [64, 64]"), "{err}");
+    assert!(
+        err.contains("do not fit this run") && err.contains("hidden [64, 64]"),
+        "{err}"
+    );
     std::fs::write(run.join("config.toml"), &config).expect("restore");
     ok(&["eval", "--run", path(&run), "--episodes", "1"]);
 }
@@ -172,7 +277,17 @@ fn a_second_training_on_a_run_directory_is_refused() {
     wait_for(&run.join("progress.csv"));
     let err = fails(&["train", "--resume", path(&run), "--quiet"]);
     assert!(err.contains("in use by another apo process"), "{err}");
-    let err = fails(&["train", "--algo", "ppo", "--env", "CartPole-v1", "--out", path(&run), "--force", "--quiet"]);
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--out",
+        path(&run),
+        "--force",
+        "--quiet",
+    ]);
     assert!(err.contains("in use by another apo process"), "{err}");
     signal(&child, "INT");
     let (code, _, stderr) = finish(child, 120);
@@ -185,19 +300,47 @@ fn sizes_are_checked_before_anything_is_created() {
     let run = tmp.path().join("run");
     let o = path(&run);
     for (flags, culprit) in [
-        (vec!["--steps-per-epoch", "1000000000000"], "steps_per_epoch"),
+        (
+            vec!["--steps-per-epoch", "1000000000000"],
+            "steps_per_epoch",
+        ),
         (vec!["--set", "hidden=[1000000000]"], "hidden"),
         (vec!["--set", "hidden=[1000000, 1000000]"], "GiB of memory"),
-        (vec!["--num-envs", "1000000000000"], "`num_envs` = 1000000000000"),
+        (
+            vec!["--num-envs", "1000000000000"],
+            "`num_envs` = 1000000000000",
+        ),
         (vec!["--set", "init_log_std=1e30"], "init_log_std"),
     ] {
-        let mut args = vec!["train", "--algo", "apo", "--env", "CartPole-v1", "--quiet", "--out", o];
+        let mut args = vec![
+            "train",
+            "--algo",
+            "apo",
+            "--env",
+            "CartPole-v1",
+            "--quiet",
+            "--out",
+            o,
+        ];
         args.extend(flags.iter().copied());
         let err = fails(&args);
         assert!(err.contains(culprit), "{flags:?}: {err}");
-        assert!(!run.exists(), "{flags:?}: a run that fails before its first epoch leaves no directory behind");
+        assert!(
+            !run.exists(),
+            "{flags:?}: a run that fails before its first epoch leaves no directory behind"
+        );
     }
-    let err = fails(&["train", "--algo", "apo", "--env", "CartPole-v1", "--seed", "9223372036854775808", "--out", o]);
+    let err = fails(&[
+        "train",
+        "--algo",
+        "apo",
+        "--env",
+        "CartPole-v1",
+        "--seed",
+        "9223372036854775808",
+        "--out",
+        o,
+    ]);
     assert!(err.contains("0..=9223372036854775807"), "{err}");
     for args in [
         vec!["bench", "update", "--obs", "0"],
@@ -221,7 +364,17 @@ fn a_diverging_update_stops_the_run_with_an_error_and_keeps_the_last_good_checkp
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
     let train = |extra: &[&str]| {
-        let mut args = vec!["train", "--algo", "a2c", "--env", "Pendulum-v1", "--epochs", "1", "--steps-per-epoch", "400"];
+        let mut args = vec![
+            "train",
+            "--algo",
+            "a2c",
+            "--env",
+            "Pendulum-v1",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "400",
+        ];
         args.extend(["--quiet", "--out", path(&run)]);
         args.extend_from_slice(extra);
         apo(&args)
@@ -230,24 +383,40 @@ fn a_diverging_update_stops_the_run_with_an_error_and_keeps_the_last_good_checkp
     // a policy learning rate of 1e30 sends the log-std to ~1e30, and the KL after the update to NaN
     let out = train(&["--set", "algo.policy_update.lr=1e30"]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "a diverged run must not exit 0: {err}");
-    assert!(err.contains("epoch 1: the update produced") && err.contains("non-finite") && err.contains("nothing was saved"), "{err}");
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "a diverged run must not exit 0: {err}"
+    );
+    assert!(
+        err.contains("epoch 1: the update produced")
+            && err.contains("non-finite")
+            && err.contains("nothing was saved"),
+        "{err}"
+    );
     assert!(!String::from_utf8_lossy(&out.stdout).contains("run finished"));
     assert!(!run.exists());
 
     // diverging later: the rows and the checkpoint of the good epochs stay
     assert!(train(&[]).status.success());
     let config = std::fs::read_to_string(run.join("config.toml")).expect("config");
-    let edited = config.replace("[algo.policy_update]\nlr = 0.0003", "[algo.policy_update]\nlr = 1e30");
+    let edited = config.replace(
+        "[algo.policy_update]\nlr = 0.0003",
+        "[algo.policy_update]\nlr = 1e30",
+    );
     assert_ne!(edited, config);
     std::fs::write(run.join("config.toml"), edited).expect("edit");
     let out = apo(&["train", "--resume", path(&run), "--epochs", "3", "--quiet"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("epoch 2: the update produced") && err.contains("non-finite"), "{err}");
+    assert!(
+        err.contains("epoch 2: the update produced") && err.contains("non-finite"),
+        "{err}"
+    );
     assert!(err.contains("last good checkpoint (epoch 1)"), "{err}");
     assert_eq!(timeless(&run).len(), 1);
-    let state = std::fs::read_to_string(run.join("checkpoints/latest/state.json")).expect("last good checkpoint");
+    let state = std::fs::read_to_string(run.join("checkpoints/latest/state.json"))
+        .expect("last good checkpoint");
     assert!(state.contains("\"epoch\": 1"), "{state}");
 }
 
@@ -260,9 +429,14 @@ fn sigterm_checkpoints_and_exits_143_with_the_resume_command() {
     signal(&child, "TERM");
     let (code, stdout, stderr) = finish(child, 120);
     assert_eq!(code, Some(143), "{stdout}{stderr}");
-    assert!(stdout.contains("interrupted by SIGTERM") && stdout.contains(&format!("apo train --resume {}", path(&run))), "{stdout}");
+    assert!(
+        stdout.contains("interrupted by SIGTERM")
+            && stdout.contains(&format!("apo train --resume {}", path(&run))),
+        "{stdout}"
+    );
     let done = timeless(&run).len();
-    let state = std::fs::read_to_string(run.join("checkpoints/latest/state.json")).expect("checkpoint");
+    let state =
+        std::fs::read_to_string(run.join("checkpoints/latest/state.json")).expect("checkpoint");
     assert!(state.contains(&format!("\"epoch\": {done}")), "{state}");
 }
 
@@ -273,15 +447,30 @@ fn a_second_interrupt_exits_at_once() {
     // A2C never stops its policy update early: a million Adam passes keep the first epoch's
     // update busy for far longer than this test, and the update does not look at the stop flag.
     let child = spawn(&[
-        "train", "--algo", "a2c", "--env", "CartPole-v1", "--epochs", "1", "--steps-per-epoch", "100", "--quiet", "--out",
-        path(&run), "--set", "algo.policy_update.iters=1000000",
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "100",
+        "--quiet",
+        "--out",
+        path(&run),
+        "--set",
+        "algo.policy_update.iters=1000000",
     ]);
     wait_for(&run.join("train.log"));
     std::thread::sleep(Duration::from_secs(3));
     signal(&child, "INT");
     std::thread::sleep(Duration::from_secs(1));
     let mut child = child;
-    assert!(child.try_wait().expect("try_wait").is_none(), "the first interrupt lets the update finish");
+    assert!(
+        child.try_wait().expect("try_wait").is_none(),
+        "the first interrupt lets the update finish"
+    );
     signal(&child, "INT");
     let (code, stdout, _) = finish(child, 30);
     assert_eq!(code, Some(130));
@@ -294,14 +483,37 @@ fn checkpoint_files_and_directories_are_synced_before_and_after_the_swap() {
     let run = tmp.path().join("run");
     let trace = tmp.path().join("trace.txt");
     let status = Command::new("strace")
-        .args(["-f", "-y", "-e", "trace=fsync,rename", "-o", path(&trace), env!("CARGO_BIN_EXE_apo")])
-        .args(["train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "1", "--steps-per-epoch", "200", "--quiet"])
+        .args([
+            "-f",
+            "-y",
+            "-e",
+            "trace=fsync,rename",
+            "-o",
+            path(&trace),
+            env!("CARGO_BIN_EXE_apo"),
+        ])
+        .args([
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+        ])
         .args(["--out", path(&run)])
         .stdout(Stdio::null())
         .status()
         .expect("strace runs (Debian package strace, installed by scripts/setup.sh)");
     assert!(status.success());
-    let calls: Vec<String> = std::fs::read_to_string(&trace).expect("trace").lines().map(str::to_string).collect();
+    let calls: Vec<String> = std::fs::read_to_string(&trace)
+        .expect("trace")
+        .lines()
+        .map(str::to_string)
+        .collect();
     let first = |call: &str, arg: &str| {
         calls
             .iter()
@@ -309,14 +521,32 @@ fn checkpoint_files_and_directories_are_synced_before_and_after_the_swap() {
             .unwrap_or_else(|| panic!("no {call} of `{arg}` in the trace:\n{}", calls.join("\n")))
     };
     let checkpoints = format!("{}/checkpoints", path(&run));
-    let swap = first("rename", &format!("\"{checkpoints}/.tmp-1\", \"{checkpoints}/latest\""));
-    for file in ["policy.mpk", "value.mpk", "policy_optim.mpk", "value_optim.mpk", "state.json", ".manifest.json.tmp"] {
-        assert!(first("fsync", &format!("<{checkpoints}/.tmp-1/{file}>")) < swap, "{file} is synced before the swap");
+    let swap = first(
+        "rename",
+        &format!("\"{checkpoints}/.tmp-1\", \"{checkpoints}/latest\""),
+    );
+    for file in [
+        "policy.mpk",
+        "value.mpk",
+        "policy_optim.mpk",
+        "value_optim.mpk",
+        "state.json",
+        ".manifest.json.tmp",
+    ] {
+        assert!(
+            first("fsync", &format!("<{checkpoints}/.tmp-1/{file}>")) < swap,
+            "{file} is synced before the swap"
+        );
     }
-    assert!(first("fsync", &format!("<{checkpoints}/.tmp-1>")) < swap, "the new checkpoint's directory is synced before the swap");
+    assert!(
+        first("fsync", &format!("<{checkpoints}/.tmp-1>")) < swap,
+        "the new checkpoint's directory is synced before the swap"
+    );
     let parent = format!("<{checkpoints}>)");
     assert!(
-        calls[swap..].iter().any(|l| l.contains(" fsync(") && l.contains(&parent)),
+        calls[swap..]
+            .iter()
+            .any(|l| l.contains(" fsync(") && l.contains(&parent)),
         "checkpoints/ is synced after the swap"
     );
     let progress = format!("{}/.progress.csv.tmp", path(&run));

@@ -11,12 +11,19 @@ mod plot;
 mod reporting;
 
 pub fn apo(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_apo")).args(args).output().expect("the apo binary runs")
+    Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args)
+        .output()
+        .expect("the apo binary runs")
 }
 
 pub fn ok(args: &[&str]) -> String {
     let out = apo(args);
-    assert!(out.status.success(), "apo {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "apo {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
@@ -33,8 +40,20 @@ pub fn path(p: &Path) -> &str {
 /// A small run: 3 epochs of 600 steps on CartPole (`extra` appended).
 pub fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
     let mut args = vec![
-        "train", "--algo", algo, "--env", "CartPole-v1", "--epochs", "3", "--steps-per-epoch", "600", "--seed", "7",
-        "--quiet", "--out", path(dir),
+        "train",
+        "--algo",
+        algo,
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "3",
+        "--steps-per-epoch",
+        "600",
+        "--seed",
+        "7",
+        "--quiet",
+        "--out",
+        path(dir),
     ];
     args.extend_from_slice(extra);
     ok(&args)
@@ -45,7 +64,14 @@ pub fn timeless(dir: &Path) -> Vec<ProgressRow> {
     progress::read(&dir.join("progress.csv"))
         .expect("progress.csv")
         .into_iter()
-        .map(|r| ProgressRow { steps_per_s: 0.0, time_s: 0.0, rollout_s: 0.0, update_pi_s: 0.0, update_v_s: 0.0, ..r })
+        .map(|r| ProgressRow {
+            steps_per_s: 0.0,
+            time_s: 0.0,
+            rollout_s: 0.0,
+            update_pi_s: 0.0,
+            update_v_s: 0.0,
+            ..r
+        })
         .collect()
 }
 
@@ -53,17 +79,42 @@ pub fn timeless(dir: &Path) -> Vec<ProgressRow> {
 fn same_seed_gives_identical_progress() {
     let tmp = tempfile::tempdir().expect("tempdir");
     for algo in ["apo", "ppo"] {
-        let (a, b) = (tmp.path().join(format!("{algo}-a")), tmp.path().join(format!("{algo}-b")));
+        let (a, b) = (
+            tmp.path().join(format!("{algo}-a")),
+            tmp.path().join(format!("{algo}-b")),
+        );
         train(&a, algo, &[]);
         train(&b, algo, &[]);
         let (ra, rb) = (timeless(&a), timeless(&b));
         assert_eq!(ra.len(), 3);
-        assert!(ra.iter().all(|r| r.episodes > 0 && r.kl.is_finite()), "{ra:?}");
+        assert!(
+            ra.iter().all(|r| r.episodes > 0 && r.kl.is_finite()),
+            "{ra:?}"
+        );
         assert_eq!(ra, rb, "{algo}: same seed, different rows");
     }
     let c = tmp.path().join("other-seed");
-    ok(&["train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "3", "--steps-per-epoch", "600", "--seed", "8", "--quiet", "--out", path(&c)]);
-    assert_ne!(timeless(&c), timeless(&tmp.path().join("ppo-a")), "another seed should give other rows");
+    ok(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "3",
+        "--steps-per-epoch",
+        "600",
+        "--seed",
+        "8",
+        "--quiet",
+        "--out",
+        path(&c),
+    ]);
+    assert_ne!(
+        timeless(&c),
+        timeless(&tmp.path().join("ppo-a")),
+        "another seed should give other rows"
+    );
 }
 
 #[test]
@@ -73,12 +124,41 @@ fn resumed_run_matches_uninterrupted_run() {
         let whole = tmp.path().join(format!("{algo}-whole"));
         train(&whole, algo, &["--set", "normalize_obs=true"]);
         let parts = tmp.path().join(format!("{algo}-parts"));
-        let mut args = vec!["train", "--algo", algo, "--env", "CartPole-v1", "--epochs", "2", "--steps-per-epoch", "600"];
-        args.extend(["--seed", "7", "--quiet", "--set", "normalize_obs=true", "--out", path(&parts)]);
+        let mut args = vec![
+            "train",
+            "--algo",
+            algo,
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "2",
+            "--steps-per-epoch",
+            "600",
+        ];
+        args.extend([
+            "--seed",
+            "7",
+            "--quiet",
+            "--set",
+            "normalize_obs=true",
+            "--out",
+            path(&parts),
+        ]);
         ok(&args);
         assert_eq!(timeless(&parts).len(), 2);
-        ok(&["train", "--resume", path(&parts), "--epochs", "3", "--quiet"]);
-        assert_eq!(timeless(&parts), timeless(&whole), "{algo}: resumed run differs");
+        ok(&[
+            "train",
+            "--resume",
+            path(&parts),
+            "--epochs",
+            "3",
+            "--quiet",
+        ]);
+        assert_eq!(
+            timeless(&parts),
+            timeless(&whole),
+            "{algo}: resumed run differs"
+        );
     }
 }
 
@@ -87,28 +167,54 @@ fn sigint_writes_a_checkpoint_and_resume_completes_the_run() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let whole = tmp.path().join("whole");
     let args = |dir: &PathBuf| -> Vec<String> {
-        ["train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "25", "--steps-per-epoch", "300", "--seed", "3", "--quiet", "--out"]
-            .iter()
-            .map(|s| s.to_string())
-            .chain([path(dir).to_string()])
-            .collect()
+        [
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "25",
+            "--steps-per-epoch",
+            "300",
+            "--seed",
+            "3",
+            "--quiet",
+            "--out",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain([path(dir).to_string()])
+        .collect()
     };
     let cut = tmp.path().join("cut");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_apo")).args(args(&cut)).spawn().expect("spawn apo");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args(&cut))
+        .spawn()
+        .expect("spawn apo");
     let deadline = Instant::now() + Duration::from_secs(300);
     while !cut.join("progress.csv").exists() {
         assert!(Instant::now() < deadline, "no epoch finished in time");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill");
     assert!(status.success());
     let exit = child.wait().expect("wait");
-    assert_eq!(exit.code(), Some(130), "an interrupted run exits with 130 after SIGINT");
+    assert_eq!(
+        exit.code(),
+        Some(130),
+        "an interrupted run exits with 130 after SIGINT"
+    );
     let done = timeless(&cut).len();
     assert!(done < 25, "the run should have stopped early");
     assert!(cut.join("checkpoints/latest/state.json").exists());
-    let state: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(cut.join("checkpoints/latest/state.json")).expect("state")).expect("json");
+    let state: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(cut.join("checkpoints/latest/state.json")).expect("state"),
+    )
+    .expect("json");
     assert_eq!(state["epoch"].as_u64(), Some(done as u64));
 
     ok(&["train", "--resume", path(&cut), "--quiet"]);
@@ -123,38 +229,117 @@ fn bad_input_gets_clear_errors() {
     let out = tmp.path().join("run");
     let o = path(&out);
     let err = fails(&["train", "--algo", "apo", "--env", "CartPol-v1", "--out", o]);
-    assert!(err.contains("unknown environment `CartPol-v1`") && err.contains("CartPole-v1"), "{err}");
+    assert!(
+        err.contains("unknown environment `CartPol-v1`") && err.contains("CartPole-v1"),
+        "{err}"
+    );
     let err = fails(&["train", "--algo", "ppp", "--env", "CartPole-v1", "--out", o]);
-    assert!(err.contains("unknown algorithm `ppp`") && err.contains("ppo"), "{err}");
+    assert!(
+        err.contains("unknown algorithm `ppp`") && err.contains("ppo"),
+        "{err}"
+    );
     for (set, field) in [
         ("algo.gamma=1.0", "`algo.gamma` = 1"),
         ("algo.k=-1", "`algo.k` = -1"),
-        ("algo.trust_region.max_kl=0", "`algo.trust_region.max_kl` = 0"),
+        (
+            "algo.trust_region.max_kl=0",
+            "`algo.trust_region.max_kl` = 0",
+        ),
         ("algo.clip=1.5", "`algo.clip` = 1.5"),
-        ("algo.lamda=0.9", "unknown config key `algo.lamda`; did you mean `algo.lambda`?"),
+        (
+            "algo.lamda=0.9",
+            "unknown config key `algo.lamda`; did you mean `algo.lambda`?",
+        ),
         ("epochs=\"many\"", "config key `epochs`"),
     ] {
-        let err = fails(&["train", "--algo", "apo", "--env", "CartPole-v1", "--set", set, "--out", o]);
+        let err = fails(&[
+            "train",
+            "--algo",
+            "apo",
+            "--env",
+            "CartPole-v1",
+            "--set",
+            set,
+            "--out",
+            o,
+        ]);
         assert!(err.contains(field), "{set}: {err}");
     }
     let missing = tmp.path().join("nope.toml");
-    let err = fails(&["train", "--algo", "apo", "--env", "CartPole-v1", "--config", path(&missing), "--out", o]);
+    let err = fails(&[
+        "train",
+        "--algo",
+        "apo",
+        "--env",
+        "CartPole-v1",
+        "--config",
+        path(&missing),
+        "--out",
+        o,
+    ]);
     assert!(err.contains("cannot read config file"), "{err}");
     let garbage = tmp.path().join("garbage.toml");
     std::fs::write(&garbage, "gamma = [").expect("write");
-    let err = fails(&["train", "--algo", "apo", "--env", "CartPole-v1", "--config", path(&garbage), "--out", o]);
+    let err = fails(&[
+        "train",
+        "--algo",
+        "apo",
+        "--env",
+        "CartPole-v1",
+        "--config",
+        path(&garbage),
+        "--out",
+        o,
+    ]);
     assert!(err.contains("not valid TOML"), "{err}");
-    assert!(!out.exists(), "a failed start must not create the run directory");
+    assert!(
+        !out.exists(),
+        "a failed start must not create the run directory"
+    );
 
     // an existing run is never overwritten without --force
-    ok(&["train", "--algo", "a2c", "--env", "CartPole-v1", "--epochs", "1", "--steps-per-epoch", "200", "--quiet", "--out", o]);
+    ok(&[
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
+        o,
+    ]);
     let before = std::fs::read(out.join("progress.csv")).expect("progress");
-    let err = fails(&["train", "--algo", "a2c", "--env", "CartPole-v1", "--epochs", "1", "--quiet", "--out", o]);
-    assert!(err.contains("already exists") && err.contains("--force"), "{err}");
-    assert_eq!(std::fs::read(out.join("progress.csv")).expect("progress"), before);
+    let err = fails(&[
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--quiet",
+        "--out",
+        o,
+    ]);
+    assert!(
+        err.contains("already exists") && err.contains("--force"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(out.join("progress.csv")).expect("progress"),
+        before
+    );
 
     // a corrupt checkpoint
-    std::fs::write(out.join("checkpoints/latest/policy.mpk"), b"not a checkpoint").expect("corrupt");
+    std::fs::write(
+        out.join("checkpoints/latest/policy.mpk"),
+        b"not a checkpoint",
+    )
+    .expect("corrupt");
     let err = fails(&["train", "--resume", o, "--epochs", "2", "--quiet"]);
     assert!(err.contains("corrupt"), "{err}");
     let err = fails(&["eval", "--run", o]);
@@ -166,10 +351,23 @@ fn eval_list_and_plot() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
     train(&run, "trpo", &[]);
-    let out = ok(&["eval", "--run", path(&run), "--episodes", "3", "--deterministic"]);
-    assert!(out.contains("episodes=3 mean_return=") && out.contains("min_return="), "{out}");
+    let out = ok(&[
+        "eval",
+        "--run",
+        path(&run),
+        "--episodes",
+        "3",
+        "--deterministic",
+    ]);
+    assert!(
+        out.contains("episodes=3 mean_return=") && out.contains("min_return="),
+        "{out}"
+    );
     let list = ok(&["list"]);
-    assert!(list.contains("CartPole-v1") && list.contains("discrete(2)") && list.contains("papo"), "{list}");
+    assert!(
+        list.contains("CartPole-v1") && list.contains("discrete(2)") && list.contains("papo"),
+        "{list}"
+    );
     for name in ["curves.png", "curves.svg"] {
         let image = tmp.path().join(name);
         ok(&["plot", path(&run), path(&run), "--out", path(&image)]);
@@ -185,12 +383,32 @@ fn wgpu_backend_trains() {
     for algo in ["apo", "papo"] {
         let run = tmp.path().join(algo);
         let out = apo(&[
-            "train", "--algo", algo, "--env", "Pendulum-v1", "--backend", "wgpu", "--epochs", "2", "--steps-per-epoch", "400",
-            "--quiet", "--out", path(&run),
+            "train",
+            "--algo",
+            algo,
+            "--env",
+            "Pendulum-v1",
+            "--backend",
+            "wgpu",
+            "--epochs",
+            "2",
+            "--steps-per-epoch",
+            "400",
+            "--quiet",
+            "--out",
+            path(&run),
         ]);
-        assert!(out.status.success(), "wgpu training failed (is a Vulkan driver installed, e.g. mesa-vulkan-drivers?): {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "wgpu training failed (is a Vulkan driver installed, e.g. mesa-vulkan-drivers?): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let rows = timeless(&run);
         assert_eq!(rows.len(), 2);
-        assert!(rows.iter().all(|r| r.kl.is_finite() && r.loss_v.is_finite() && r.episodes == 2), "{rows:?}");
+        assert!(
+            rows.iter()
+                .all(|r| r.kl.is_finite() && r.loss_v.is_finite() && r.episodes == 2),
+            "{rows:?}"
+        );
     }
 }

@@ -15,17 +15,43 @@ use super::{fails, ok, path, train};
 #[test]
 fn help_shows_defaults_and_config_prints_every_key_documented() {
     let help = ok(&["train", "--help"]);
-    for text in ["default 200", "default 30000", "apo config --algo", "--num-envs", "--checkpoint-every", "0..=9223372036854775807"] {
-        assert!(help.contains(text), "`apo train --help` lacks `{text}`:\n{help}");
+    for text in [
+        "default 200",
+        "default 30000",
+        "apo config --algo",
+        "--num-envs",
+        "--checkpoint-every",
+        "0..=9223372036854775807",
+    ] {
+        assert!(
+            help.contains(text),
+            "`apo train --help` lacks `{text}`:\n{help}"
+        );
     }
-    let text = ok(&["config", "--algo", "papo", "--env", "Hopper", "--set", "algo.k=5"]);
-    assert!(text.contains("# probability factor k") && text.contains("\nk = 5.0\n"), "{text}");
-    assert!(text.contains("# Adam learning rate (paper: 3e-4); > 0\nlr = 0.0003"), "{text}");
+    let text = ok(&[
+        "config", "--algo", "papo", "--env", "Hopper", "--set", "algo.k=5",
+    ]);
+    assert!(
+        text.contains("# probability factor k") && text.contains("\nk = 5.0\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains("# Adam learning rate (paper: 3e-4); > 0\nlr = 0.0003"),
+        "{text}"
+    );
     // what `apo config` prints is a config file that reproduces itself
     let tmp = tempfile::tempdir().expect("tempdir");
     let file = tmp.path().join("papo.toml");
     std::fs::write(&file, &text).expect("write");
-    let again = ok(&["config", "--algo", "papo", "--env", "Hopper", "--config", path(&file)]);
+    let again = ok(&[
+        "config",
+        "--algo",
+        "papo",
+        "--env",
+        "Hopper",
+        "--config",
+        path(&file),
+    ]);
     assert_eq!(again, text);
     let err = fails(&["config", "--algo", "apo", "--set", "algo.k=-1"]);
     assert!(err.contains("`algo.k` = -1"), "{err}");
@@ -37,26 +63,58 @@ fn flags_summary_eval_logs_and_tensorboard() {
     let run = tmp.path().join("run, with a comma");
     let out = Command::new(env!("CARGO_BIN_EXE_apo"))
         .args([
-            "train", "--algo", "ppo", "--env", "CartPole-v1", "--epochs", "2", "--steps-per-epoch", "400", "--num-envs", "2",
-            "--checkpoint-every", "2", "--quiet", "--set", "keep_checkpoint_every=1", "--out", path(&run),
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "2",
+            "--steps-per-epoch",
+            "400",
+            "--num-envs",
+            "2",
+            "--checkpoint-every",
+            "2",
+            "--quiet",
+            "--set",
+            "keep_checkpoint_every=1",
+            "--out",
+            path(&run),
         ])
         .env("RUST_LOG", "info")
         .output()
         .expect("apo runs");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    assert!(stderr.contains("epoch done"), "RUST_LOG=info shows the log: {stderr}");
-    assert!(!stderr.contains('\x1b'), "no colour codes when stderr is not a terminal: {stderr:?}");
+    assert!(
+        stderr.contains("epoch done"),
+        "RUST_LOG=info shows the log: {stderr}"
+    );
+    assert!(
+        !stderr.contains('\x1b'),
+        "no colour codes when stderr is not a terminal: {stderr:?}"
+    );
     let config = std::fs::read_to_string(run.join("config.toml")).expect("config");
-    assert!(config.contains("num_envs = 2") && config.contains("checkpoint_every = 2"), "{config}");
+    assert!(
+        config.contains("num_envs = 2") && config.contains("checkpoint_every = 2"),
+        "{config}"
+    );
     let log = std::fs::read_to_string(run.join("train.log")).expect("log");
-    assert!(log.contains("ret_mean=") && !log.contains("Some("), "the log prints values: {log}");
+    assert!(
+        log.contains("ret_mean=") && !log.contains("Some("),
+        "the log prints values: {log}"
+    );
 
     // TensorBoard: one event file with the epochs' scalars
     let events: Vec<_> = std::fs::read_dir(&run)
         .expect("run dir")
         .flatten()
-        .filter(|e| e.file_name().to_string_lossy().starts_with("events.out.tfevents."))
+        .filter(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .starts_with("events.out.tfevents.")
+        })
         .collect();
     assert_eq!(events.len(), 1);
     let bytes = std::fs::read(events[0].path()).expect("events");
@@ -69,19 +127,48 @@ fn flags_summary_eval_logs_and_tensorboard() {
     let table = ok(&["summary", path(&run), path(&other), "--last", "1"]);
     let lines: Vec<&str> = table.lines().collect();
     assert_eq!(lines.len(), 3, "{table}");
-    assert!(lines[0].starts_with("run") && lines[0].contains("worst(last 1)"), "{table}");
-    assert!(lines.iter().all(|l| l.chars().count() == lines[0].chars().count()), "aligned:\n{table}");
+    assert!(
+        lines[0].starts_with("run") && lines[0].contains("worst(last 1)"),
+        "{table}"
+    );
+    assert!(
+        lines
+            .iter()
+            .all(|l| l.chars().count() == lines[0].chars().count()),
+        "aligned:\n{table}"
+    );
     let csv = ok(&["summary", path(&run), path(&other), "--last", "1", "--csv"]);
-    assert!(csv.starts_with("run,epochs,env_steps,mean_all,mean_last1,"), "{csv}");
-    assert!(csv.contains(&format!("\"{}\",2,", path(&run))), "a run name with a comma is quoted: {csv}");
+    assert!(
+        csv.starts_with("run,epochs,env_steps,mean_all,mean_last1,"),
+        "{csv}"
+    );
+    assert!(
+        csv.contains(&format!("\"{}\",2,", path(&run))),
+        "a run name with a comma is quoted: {csv}"
+    );
 
     // eval: std, and a chosen checkpoint
     let latest = ok(&["eval", "--run", path(&run), "--episodes", "3"]);
-    assert!(latest.contains("checkpoint_epoch=2 episodes=3 mean_return=") && latest.contains("std_return="), "{latest}");
-    let first = ok(&["eval", "--run", path(&run), "--episodes", "3", "--checkpoint", "1"]);
+    assert!(
+        latest.contains("checkpoint_epoch=2 episodes=3 mean_return=")
+            && latest.contains("std_return="),
+        "{latest}"
+    );
+    let first = ok(&[
+        "eval",
+        "--run",
+        path(&run),
+        "--episodes",
+        "3",
+        "--checkpoint",
+        "1",
+    ]);
     assert!(first.contains("checkpoint_epoch=1 "), "{first}");
     let err = fails(&["eval", "--run", path(&run), "--checkpoint", "7"]);
-    assert!(err.contains("no checkpoint of epoch 7 (kept: [1, 2])"), "{err}");
+    assert!(
+        err.contains("no checkpoint of epoch 7 (kept: [1, 2])"),
+        "{err}"
+    );
 }
 
 /// Records the observer calls.
@@ -110,13 +197,26 @@ fn progress_advances_within_the_epoch() {
         ..RunConfig::defaults(Algorithm::Ppo, "CartPole-v1")
     };
     let mut seen = Recorder::default();
-    let end = trainer::train::<burn::backend::NdArray>(&config, tmp.path(), &Default::default(), false, &AtomicBool::new(false), &mut seen)
-        .expect("trains");
+    let end = trainer::train::<burn::backend::NdArray>(
+        &config,
+        tmp.path(),
+        &Default::default(),
+        false,
+        &AtomicBool::new(false),
+        &mut seen,
+    )
+    .expect("trains");
     assert_eq!(end, trainer::TrainEnd::Finished);
     assert_eq!(seen.epochs, vec![1, 2]);
     let every = trainer::PROGRESS_EVERY as u64;
-    let expected: Vec<u64> = (0..1000).step_by(every as usize).chain((1000..2000).step_by(every as usize)).collect();
-    assert_eq!(seen.steps, expected, "steps reported every {every} steps within each epoch");
+    let expected: Vec<u64> = (0..1000)
+        .step_by(every as usize)
+        .chain((1000..2000).step_by(every as usize))
+        .collect();
+    assert_eq!(
+        seen.steps, expected,
+        "steps reported every {every} steps within each epoch"
+    );
 }
 
 #[test]
@@ -125,8 +225,20 @@ fn wgpu_runs_without_runtime_dir_noise() {
     let run = tmp.path().join("run");
     let out = Command::new(env!("CARGO_BIN_EXE_apo"))
         .args([
-            "train", "--algo", "trpo", "--env", "Pendulum-v1", "--backend", "wgpu", "--epochs", "1", "--steps-per-epoch", "200",
-            "--quiet", "--out", path(&run),
+            "train",
+            "--algo",
+            "trpo",
+            "--env",
+            "Pendulum-v1",
+            "--backend",
+            "wgpu",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(&run),
         ])
         .env_remove("XDG_RUNTIME_DIR")
         .output()

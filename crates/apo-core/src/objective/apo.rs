@@ -56,7 +56,11 @@ pub fn mean_surr<B: Backend>(ratio: Tensor<B, 1>, adv: Tensor<B, 1>) -> Tensor<B
 
 /// `t(r) = (r − 1) · delta² + 2 · r · delta · h` → `[batch]`: the sample form of
 /// `E_π[A²] − E_πj[A²] + 2 E_π[A] |H|_max` (the `|H|²` term is constant and dropped).
-pub fn variance_increment<B: Backend>(ratio: Tensor<B, 1>, delta: Tensor<B, 1>, h: Tensor<B, 1>) -> Tensor<B, 1> {
+pub fn variance_increment<B: Backend>(
+    ratio: Tensor<B, 1>,
+    delta: Tensor<B, 1>,
+    h: Tensor<B, 1>,
+) -> Tensor<B, 1> {
     let delta_sq = delta.clone().square();
     (ratio.clone().sub_scalar(1.0) * delta_sq) + (ratio * delta * h).mul_scalar(2.0)
 }
@@ -68,7 +72,10 @@ pub fn mean_variance<B: Backend>(
     h: Tensor<B, 1>,
     omega1: f64,
 ) -> Tensor<B, 1> {
-    variance_increment(ratio, delta, h).abs().mean().mul_scalar(omega1)
+    variance_increment(ratio, delta, h)
+        .abs()
+        .mean()
+        .mul_scalar(omega1)
 }
 
 /// The bias of the lower bound of `J`: `4γ · |mean(logp_old − logp)| · max(adv) / (1 − γ)²`.
@@ -85,8 +92,13 @@ pub fn lower_bound_bias<B: Backend>(
 /// The minimal squared performance `min_J_sq = mean_surr² + 2 · mean(V) · mean_surr`,
 /// switched to 0 when `mean_surr + mean(V) − bias < 0` (the interval of `J` reaches zero).
 /// The switch is a condition, not differentiated.
-pub fn min_j_sq<B: Backend>(mean_surr: Tensor<B, 1>, mean_value: Tensor<B, 1>, bias: Tensor<B, 1>) -> Tensor<B, 1> {
-    let value = mean_surr.clone().square() + (mean_value.clone() * mean_surr.clone()).mul_scalar(2.0);
+pub fn min_j_sq<B: Backend>(
+    mean_surr: Tensor<B, 1>,
+    mean_value: Tensor<B, 1>,
+    bias: Tensor<B, 1>,
+) -> Tensor<B, 1> {
+    let value =
+        mean_surr.clone().square() + (mean_value.clone() * mean_surr.clone()).mul_scalar(2.0);
     let off = (mean_surr + mean_value - bias).detach().lower_elem(0.0);
     value.mask_fill(off, 0.0)
 }

@@ -53,7 +53,11 @@ pub struct ObjectiveTerms<B: Backend> {
 
 impl Objective {
     /// Evaluates the objective for the policy's distributions `dist` on `batch`.
-    pub fn evaluate<B: Backend>(&self, dist: &DistParams<B>, batch: &TensorBatch<B>) -> ObjectiveTerms<B> {
+    pub fn evaluate<B: Backend>(
+        &self,
+        dist: &DistParams<B>,
+        batch: &TensorBatch<B>,
+    ) -> ObjectiveTerms<B> {
         let logp = dist.log_prob(batch.actions.clone());
         match *self {
             Objective::A2c => {
@@ -69,12 +73,19 @@ impl Objective {
                 Self::surrogate_only(papo::clipped_mean_surr(ratio, batch.adv.clone(), clip))
             }
             Objective::Apo(params) => Self::absolute(&params, None, logp, dist, batch),
-            Objective::Papo { params, clip } => Self::absolute(&params, Some(clip), logp, dist, batch),
+            Objective::Papo { params, clip } => {
+                Self::absolute(&params, Some(clip), logp, dist, batch)
+            }
         }
     }
 
     fn surrogate_only<B: Backend>(mean_surr: Tensor<B, 1>) -> ObjectiveTerms<B> {
-        ObjectiveTerms { objective: mean_surr.clone(), mean_surr, mean_variance: None, variance_mean: None }
+        ObjectiveTerms {
+            objective: mean_surr.clone(),
+            mean_surr,
+            mean_variance: None,
+            variance_mean: None,
+        }
     }
 
     /// APO (`clip = None`) or PAPO (`clip = Some(ε)`).
@@ -93,12 +104,21 @@ impl Objective {
         if params.k == 0.0 {
             return Self::surrogate_only(mean_surr);
         }
-        let h = apo::h_max(params, ratio.clone(), batch.adv.clone(), || dist.kl_from(&batch.dist_old).mean());
+        let h = apo::h_max(params, ratio.clone(), batch.adv.clone(), || {
+            dist.kl_from(&batch.dist_old).mean()
+        });
         let mv = match clip {
             None => apo::mean_variance(ratio, batch.delta.clone(), h, params.omega1),
-            Some(clip) => papo::clipped_mean_variance(ratio, batch.delta.clone(), h, params.omega1, clip),
+            Some(clip) => {
+                papo::clipped_mean_variance(ratio, batch.delta.clone(), h, params.omega1, clip)
+            }
         };
-        let bias = apo::lower_bound_bias(logp, batch.logp_old.clone(), batch.adv.clone(), params.gamma);
+        let bias = apo::lower_bound_bias(
+            logp,
+            batch.logp_old.clone(),
+            batch.adv.clone(),
+            params.gamma,
+        );
         let min_j_sq = apo::min_j_sq(mean_surr.clone(), batch.value.clone().mean(), bias);
         let vm = apo::variance_mean(
             batch.adv.clone(),
@@ -109,6 +129,11 @@ impl Objective {
             params.k,
         );
         let objective = mean_surr.clone() - (mv.clone() + vm.clone()).mul_scalar(params.k);
-        ObjectiveTerms { objective, mean_surr, mean_variance: Some(mv), variance_mean: Some(vm) }
+        ObjectiveTerms {
+            objective,
+            mean_surr,
+            mean_variance: Some(mv),
+            variance_mean: Some(vm),
+        }
     }
 }

@@ -19,7 +19,11 @@ pub fn clip_ratio<B: Backend>(ratio: Tensor<B, 1>, clip: f64) -> Tensor<B, 1> {
 }
 
 /// PPO's clipped surrogate `mean(min(ratio · adv, clip(ratio) · adv))`.
-pub fn clipped_mean_surr<B: Backend>(ratio: Tensor<B, 1>, adv: Tensor<B, 1>, clip: f64) -> Tensor<B, 1> {
+pub fn clipped_mean_surr<B: Backend>(
+    ratio: Tensor<B, 1>,
+    adv: Tensor<B, 1>,
+    clip: f64,
+) -> Tensor<B, 1> {
     let unclipped = ratio.clone() * adv.clone();
     let clipped = clip_ratio(ratio, clip) * adv;
     unclipped.min_pair(clipped).mean()

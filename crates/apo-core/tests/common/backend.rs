@@ -49,24 +49,50 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
 
     // mean_surr
     let ms_ref = (0..5).map(|i| ratio_ref[i] * d.adv[i]).sum::<f64>() / n;
-    assert_rel("mean_surr", scalar(apo::mean_surr(ratio.clone(), t(&d.adv))), ms_ref, tol);
+    assert_rel(
+        "mean_surr",
+        scalar(apo::mean_surr(ratio.clone(), t(&d.adv))),
+        ms_ref,
+        tol,
+    );
 
     // variance_increment and mean_variance, with a constant h = ω2
     let h = [omega2; 5];
-    let inc_ref: Vec<f64> =
-        (0..5).map(|i| (ratio_ref[i] - 1.0) * d.delta[i] * d.delta[i] + 2.0 * ratio_ref[i] * d.delta[i] * omega2).collect();
+    let inc_ref: Vec<f64> = (0..5)
+        .map(|i| {
+            (ratio_ref[i] - 1.0) * d.delta[i] * d.delta[i]
+                + 2.0 * ratio_ref[i] * d.delta[i] * omega2
+        })
+        .collect();
     let inc = host(apo::variance_increment(ratio.clone(), t(&d.delta), t(&h)));
     for i in 0..5 {
         assert_rel(&format!("variance_increment[{i}]"), inc[i], inc_ref[i], tol);
     }
     let mv_ref = omega1 * inc_ref.iter().map(|x| x.abs()).sum::<f64>() / n;
-    assert_rel("mean_variance", scalar(apo::mean_variance(ratio.clone(), t(&d.delta), t(&h), omega1)), mv_ref, tol);
+    assert_rel(
+        "mean_variance",
+        scalar(apo::mean_variance(
+            ratio.clone(),
+            t(&d.delta),
+            t(&h),
+            omega1,
+        )),
+        mv_ref,
+        tol,
+    );
     // the |·| matters on this data
     assert!(inc_ref.iter().any(|x| *x < 0.0) && inc_ref.iter().any(|x| *x > 0.0));
 
     // h_max in the fixed mode is ω2 everywhere
-    let params = ApoParams { k, omega1, h_max: HMax::Fixed(omega2), gamma };
-    let hm = host(apo::h_max(&params, ratio.clone(), t(&d.adv), || panic!("fixed mode must not evaluate the KL")));
+    let params = ApoParams {
+        k,
+        omega1,
+        h_max: HMax::Fixed(omega2),
+        gamma,
+    };
+    let hm = host(apo::h_max(&params, ratio.clone(), t(&d.adv), || {
+        panic!("fixed mode must not evaluate the KL")
+    }));
     for v in hm {
         assert_rel("h_max (fixed)", v, omega2, tol);
     }
@@ -75,42 +101,82 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
     let mean_dlogp = (0..5).map(|i| d.logp_old[i] - d.logp[i]).sum::<f64>() / n;
     let max_adv = d.adv.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let bias_ref = 4.0 * gamma * mean_dlogp.abs() * max_adv / ((1.0 - gamma) * (1.0 - gamma));
-    assert!(mean_dlogp < 0.0, "the data should make the |·| of the bias matter");
-    assert_rel("lower_bound_bias", scalar(apo::lower_bound_bias(t(&d.logp), t(&d.logp_old), t(&d.adv), gamma)), bias_ref, tol);
+    assert!(
+        mean_dlogp < 0.0,
+        "the data should make the |·| of the bias matter"
+    );
+    assert_rel(
+        "lower_bound_bias",
+        scalar(apo::lower_bound_bias(
+            t(&d.logp),
+            t(&d.logp_old),
+            t(&d.adv),
+            gamma,
+        )),
+        bias_ref,
+        tol,
+    );
 
     // min_j_sq on both sides of its switch, and exactly on the boundary (margin 0 is "on")
     let one = |x: f64| t1::<B>(&[x], device);
     let cases = [
         // (mean_surr, mean(V), bias, expected)
-        (0.4, 1.1, 0.3, 0.4 * 0.4 + 2.0 * 1.1 * 0.4),  // margin 1.2 ≥ 0: on
-        (0.4, 1.1, 1.6, 0.0),                          // margin −0.1 < 0: off
+        (0.4, 1.1, 0.3, 0.4 * 0.4 + 2.0 * 1.1 * 0.4), // margin 1.2 ≥ 0: on
+        (0.4, 1.1, 1.6, 0.0),                         // margin −0.1 < 0: off
         (0.5, 0.25, 0.75, 0.5 * 0.5 + 2.0 * 0.25 * 0.5), // margin exactly 0: on
-        (-0.3, 2.0, 0.1, 0.09 - 1.2),                  // on, negative value
-        (-0.3, -2.0, 0.0, 0.0),                        // off
+        (-0.3, 2.0, 0.1, 0.09 - 1.2),                 // on, negative value
+        (-0.3, -2.0, 0.0, 0.0),                       // off
     ];
     for (ms, mv, bias, expected) in cases {
         let got = scalar(apo::min_j_sq(one(ms), one(mv), one(bias)));
-        assert_close(&format!("min_j_sq(ms {ms}, mean V {mv}, bias {bias})"), got, expected, tol, 1.0);
+        assert_close(
+            &format!("min_j_sq(ms {ms}, mean V {mv}, bias {bias})"),
+            got,
+            expected,
+            tol,
+            1.0,
+        );
     }
 
     // variance_mean = ω1 (1 − γ²) / k · mean(|adv|² + 2 |adv| V) − min_J_sq
-    let spread = (0..5).map(|i| d.adv[i].abs().powi(2) + 2.0 * d.adv[i].abs() * d.value[i]).sum::<f64>() / n;
+    let spread = (0..5)
+        .map(|i| d.adv[i].abs().powi(2) + 2.0 * d.adv[i].abs() * d.value[i])
+        .sum::<f64>()
+        / n;
     for mjs in [0.0, 0.37] {
         let vm_ref = omega1 * (1.0 - gamma * gamma) / k * spread - mjs;
-        let vm = scalar(apo::variance_mean(t(&d.adv), t(&d.value), one(mjs), omega1, gamma, k));
+        let vm = scalar(apo::variance_mean(
+            t(&d.adv),
+            t(&d.value),
+            one(mjs),
+            omega1,
+            gamma,
+            k,
+        ));
         assert_rel(&format!("variance_mean(min_j_sq {mjs})"), vm, vm_ref, tol);
     }
 
     // estimated_h_max = 2γ(1+γ)/(1−γ)² · max|adv| · KL + |ratio · adv|
     let kl = 0.0123;
     let max_abs_adv = d.adv.iter().map(|a| a.abs()).fold(0.0, f64::max);
-    let est = host(apo::estimated_h_max(ratio.clone(), t(&d.adv), one(kl), gamma));
+    let est = host(apo::estimated_h_max(
+        ratio.clone(),
+        t(&d.adv),
+        one(kl),
+        gamma,
+    ));
     for i in 0..5 {
-        let e = 2.0 * gamma * (1.0 + gamma) / (1.0 - gamma).powi(2) * max_abs_adv * kl + (ratio_ref[i] * d.adv[i]).abs();
+        let e = 2.0 * gamma * (1.0 + gamma) / (1.0 - gamma).powi(2) * max_abs_adv * kl
+            + (ratio_ref[i] * d.adv[i]).abs();
         assert_rel(&format!("estimated_h_max[{i}]"), est[i], e, tol);
     }
-    let params_est = ApoParams { h_max: HMax::Estimated, ..params };
-    let hm = host(apo::h_max(&params_est, ratio.clone(), t(&d.adv), || one(kl)));
+    let params_est = ApoParams {
+        h_max: HMax::Estimated,
+        ..params
+    };
+    let hm = host(apo::h_max(&params_est, ratio.clone(), t(&d.adv), || {
+        one(kl)
+    }));
     for i in 0..5 {
         assert_rel(&format!("h_max (estimated)[{i}]"), hm[i], est[i], tol);
     }
@@ -119,15 +185,47 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
     let clamp = |r: f64| r.max(1.0 - clip).min(1.0 + clip);
     let clipped = host(papo::clip_ratio(ratio.clone(), clip));
     for i in 0..5 {
-        assert_rel(&format!("clip_ratio[{i}]"), clipped[i], clamp(ratio_ref[i]), tol);
+        assert_rel(
+            &format!("clip_ratio[{i}]"),
+            clipped[i],
+            clamp(ratio_ref[i]),
+            tol,
+        );
     }
-    assert_eq!((0..5).filter(|&i| clamp(ratio_ref[i]) != ratio_ref[i]).count(), 4, "4 of 5 ratios are clipped");
-    let cms_ref = (0..5).map(|i| (ratio_ref[i] * d.adv[i]).min(clamp(ratio_ref[i]) * d.adv[i])).sum::<f64>() / n;
-    assert_rel("clipped_mean_surr", scalar(papo::clipped_mean_surr(ratio.clone(), t(&d.adv), clip)), cms_ref, tol);
-    assert!((cms_ref - ms_ref).abs() > 1e-3, "clipping must change the surrogate on this data");
+    assert_eq!(
+        (0..5)
+            .filter(|&i| clamp(ratio_ref[i]) != ratio_ref[i])
+            .count(),
+        4,
+        "4 of 5 ratios are clipped"
+    );
+    let cms_ref = (0..5)
+        .map(|i| (ratio_ref[i] * d.adv[i]).min(clamp(ratio_ref[i]) * d.adv[i]))
+        .sum::<f64>()
+        / n;
+    assert_rel(
+        "clipped_mean_surr",
+        scalar(papo::clipped_mean_surr(ratio.clone(), t(&d.adv), clip)),
+        cms_ref,
+        tol,
+    );
+    assert!(
+        (cms_ref - ms_ref).abs() > 1e-3,
+        "clipping must change the surrogate on this data"
+    );
     let tf = |r: f64, i: usize| (r - 1.0) * d.delta[i] * d.delta[i] + 2.0 * r * d.delta[i] * omega2;
-    let cmv_ref = omega1 * (0..5).map(|i| tf(ratio_ref[i], i).min(tf(clamp(ratio_ref[i]), i))).sum::<f64>() / n;
-    let cmv = scalar(papo::clipped_mean_variance(ratio, t(&d.delta), t(&h), omega1, clip));
+    let cmv_ref = omega1
+        * (0..5)
+            .map(|i| tf(ratio_ref[i], i).min(tf(clamp(ratio_ref[i]), i)))
+            .sum::<f64>()
+        / n;
+    let cmv = scalar(papo::clipped_mean_variance(
+        ratio,
+        t(&d.delta),
+        t(&h),
+        omega1,
+        clip,
+    ));
     assert_rel("clipped_mean_variance", cmv, cmv_ref, tol);
 }
 
@@ -139,31 +237,92 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
 /// offset of their batch and the side of the `min_J_sq` switch they must hit
 /// (`None`: the objective has no switch).
 pub fn objective_cases() -> Vec<(&'static str, Objective, f64, Option<bool>)> {
-    let paper = ApoParams { k: 7.0, omega1: 0.005, h_max: HMax::Fixed(0.005), gamma: 0.99 };
-    let big = ApoParams { k: 2.0, omega1: 0.3, h_max: HMax::Fixed(0.7), gamma: 0.5 };
-    let est = ApoParams { k: 3.0, omega1: 0.01, h_max: HMax::Estimated, gamma: 0.9 };
+    let paper = ApoParams {
+        k: 7.0,
+        omega1: 0.005,
+        h_max: HMax::Fixed(0.005),
+        gamma: 0.99,
+    };
+    let big = ApoParams {
+        k: 2.0,
+        omega1: 0.3,
+        h_max: HMax::Fixed(0.7),
+        gamma: 0.5,
+    };
+    let est = ApoParams {
+        k: 3.0,
+        omega1: 0.01,
+        h_max: HMax::Estimated,
+        gamma: 0.9,
+    };
     vec![
         ("trpo", Objective::Trpo, 0.0, None),
         ("a2c", Objective::A2c, 0.0, None),
         ("ppo", Objective::Ppo { clip: 0.2 }, 0.0, None),
-        ("apo paper params (switch off)", Objective::Apo(paper), 0.0, Some(false)),
-        ("apo large terms, γ 0.5 (switch on)", Objective::Apo(big), 5.0, Some(true)),
-        ("apo large terms, γ 0.5 (switch off)", Objective::Apo(big), -5.0, Some(false)),
+        (
+            "apo paper params (switch off)",
+            Objective::Apo(paper),
+            0.0,
+            Some(false),
+        ),
+        (
+            "apo large terms, γ 0.5 (switch on)",
+            Objective::Apo(big),
+            5.0,
+            Some(true),
+        ),
+        (
+            "apo large terms, γ 0.5 (switch off)",
+            Objective::Apo(big),
+            -5.0,
+            Some(false),
+        ),
         ("apo estimated |H|", Objective::Apo(est), 0.0, Some(false)),
-        ("papo (switch on)", Objective::Papo { params: big, clip: 0.2 }, 5.0, Some(true)),
-        ("papo paper params", Objective::Papo { params: paper, clip: 0.2 }, 0.0, Some(false)),
-        ("papo estimated |H|", Objective::Papo { params: est, clip: 0.2 }, 0.0, Some(false)),
+        (
+            "papo (switch on)",
+            Objective::Papo {
+                params: big,
+                clip: 0.2,
+            },
+            5.0,
+            Some(true),
+        ),
+        (
+            "papo paper params",
+            Objective::Papo {
+                params: paper,
+                clip: 0.2,
+            },
+            0.0,
+            Some(false),
+        ),
+        (
+            "papo estimated |H|",
+            Objective::Papo {
+                params: est,
+                clip: 0.2,
+            },
+            0.0,
+            Some(false),
+        ),
     ]
 }
 
 /// The two policy shapes of the gradient and HVP checks.
 pub fn policy_cases() -> Vec<(&'static str, MlpPolicyConfig)> {
-    vec![("gaussian", gaussian_cfg(4, &[8, 8], 3)), ("categorical", categorical_cfg(4, &[8, 8], 5))]
+    vec![
+        ("gaussian", gaussian_cfg(4, &[8, 8], 3)),
+        ("categorical", categorical_cfg(4, &[8, 8], 5)),
+    ]
 }
 
 /// A batch collected by `θ_old` and a point `θ = θ_old + noise` where the objective is
 /// evaluated (ratios spread around 1, some clipped at ε = 0.2).
-pub fn gradient_point(cfg: &MlpPolicyConfig, value_mean: f64, seed: u64) -> (Vec<f64>, Vec<f64>, RefBatch) {
+pub fn gradient_point(
+    cfg: &MlpPolicyConfig,
+    value_mean: f64,
+    seed: u64,
+) -> (Vec<f64>, Vec<f64>, RefBatch) {
     let mut rng = Rng::new(seed);
     let theta_old = random_theta(cfg, &mut rng);
     let batch = sample_batch(cfg, &theta_old, 24, value_mean, &mut rng);
@@ -181,7 +340,11 @@ pub fn check_evaluate<B: Backend>(device: &B::Device, tol: f64) {
             let r = ref_terms_dist(&obj, &dist, &batch);
             if let Some(on) = side {
                 let m = r.switch_margin.expect("APO terms");
-                assert_eq!(m >= 0.0, on, "{pname}/{oname}: test data is on the wrong side of the switch (margin {m})");
+                assert_eq!(
+                    m >= 0.0,
+                    on,
+                    "{pname}/{oname}: test data is on the wrong side of the switch (margin {m})"
+                );
             }
             let tb = batch.to_tensors::<B>(device);
             let terms = obj.evaluate(&dist.to_params::<B>(device), &tb);
@@ -190,10 +353,30 @@ pub fn check_evaluate<B: Backend>(device: &B::Device, tol: f64) {
                 + r.mean_variance.unwrap_or(0.0).abs()
                 + r.variance_mean.unwrap_or(0.0).abs()
                 + r.min_j_sq.unwrap_or(0.0).abs();
-            assert_close(&format!("{what}: objective"), scalar(terms.objective), r.objective, tol, scale);
-            assert_close(&format!("{what}: mean_surr"), scalar(terms.mean_surr), r.mean_surr, tol, scale);
-            assert_eq!(terms.mean_variance.is_some(), r.mean_variance.is_some(), "{what}: mv presence");
-            assert_eq!(terms.variance_mean.is_some(), r.variance_mean.is_some(), "{what}: vm presence");
+            assert_close(
+                &format!("{what}: objective"),
+                scalar(terms.objective),
+                r.objective,
+                tol,
+                scale,
+            );
+            assert_close(
+                &format!("{what}: mean_surr"),
+                scalar(terms.mean_surr),
+                r.mean_surr,
+                tol,
+                scale,
+            );
+            assert_eq!(
+                terms.mean_variance.is_some(),
+                r.mean_variance.is_some(),
+                "{what}: mv presence"
+            );
+            assert_eq!(
+                terms.variance_mean.is_some(),
+                r.variance_mean.is_some(),
+                "{what}: vm presence"
+            );
             if let (Some(a), Some(e)) = (terms.mean_variance, r.mean_variance) {
                 assert_close(&format!("{what}: mean_variance"), scalar(a), e, tol, scale);
             }
@@ -219,23 +402,48 @@ pub fn library_gradient<B: Backend>(
 ) -> (f64, Vec<f64>) {
     let tb = batch.to_tensors::<Autodiff<B>>(device);
     let template = cfg.init::<Autodiff<B>>(device);
-    gradient::<Autodiff<B>, _>(&template, theta, device, |p| obj.evaluate(&p.distribution(tb.obs.clone()), &tb).objective)
+    gradient::<Autodiff<B>, _>(&template, theta, device, |p| {
+        obj.evaluate(&p.distribution(tb.obs.clone()), &tb).objective
+    })
 }
 
 /// The float64 finite-difference gradient of the reference objective, after checking
 /// that no kink of the objective is within reach of the step.
-pub fn reference_gradient(cfg: &MlpPolicyConfig, obj: &Objective, theta: &[f64], batch: &RefBatch, what: &str) -> (f64, Vec<f64>) {
+pub fn reference_gradient(
+    cfg: &MlpPolicyConfig,
+    obj: &Objective,
+    theta: &[f64],
+    batch: &RefBatch,
+    what: &str,
+) -> (f64, Vec<f64>) {
     let r = ref_objective(cfg, obj, theta, batch);
-    assert!(r.kink_margin > 1e-4, "{what}: data within {:.1e} of a kink; choose another seed", r.kink_margin);
+    assert!(
+        r.kink_margin > 1e-4,
+        "{what}: data within {:.1e} of a kink; choose another seed",
+        r.kink_margin
+    );
     if let Some(m) = r.switch_margin {
-        assert!(m.abs() > 1e-3, "{what}: data on the min_J_sq switch (margin {m:.1e})");
+        assert!(
+            m.abs() > 1e-3,
+            "{what}: data on the min_J_sq switch (margin {m:.1e})"
+        );
     }
     if let Objective::Ppo { clip } | Objective::Papo { clip, .. } = *obj {
         let logp = ref_policy(cfg, theta, &batch.obs).log_prob(&batch.actions);
-        let clipped = (0..batch.len()).filter(|&i| ((logp[i] - batch.logp_old[i]).exp() - 1.0).abs() > clip).count();
-        assert!(clipped > 0 && clipped < batch.len(), "{what}: {clipped} of {} ratios clipped; want some", batch.len());
+        let clipped = (0..batch.len())
+            .filter(|&i| ((logp[i] - batch.logp_old[i]).exp() - 1.0).abs() > clip)
+            .count();
+        assert!(
+            clipped > 0 && clipped < batch.len(),
+            "{what}: {clipped} of {} ratios clipped; want some",
+            batch.len()
+        );
     }
-    let g = fd_gradient(|th| ref_objective(cfg, obj, th, batch).objective, theta, 1e-6);
+    let g = fd_gradient(
+        |th| ref_objective(cfg, obj, th, batch).objective,
+        theta,
+        1e-6,
+    );
     (r.objective, g)
 }
 
@@ -250,7 +458,10 @@ pub fn check_gradients<B: Backend>(device: &B::Device, tol: f64) -> Vec<(String,
             let (f_ref, g_ref) = reference_gradient(&cfg, &obj, &theta, &batch, &what);
             let (f, g) = library_gradient::<B>(&cfg, &obj, &theta, &batch, device);
             assert_close(&format!("{what}: value"), f, f_ref, tol, 1e-2);
-            assert!(norm(&g_ref) > 1e-3, "{what}: degenerate (zero) reference gradient");
+            assert!(
+                norm(&g_ref) > 1e-3,
+                "{what}: degenerate (zero) reference gradient"
+            );
             let err = assert_vec_rel(&format!("{what}: gradient"), &g, &g_ref, tol);
             errors.push((what, err));
         }
@@ -289,7 +500,11 @@ impl HvpCase {
         }
     }
 
-    fn graph<B: Backend>(&self, p: &<MlpPolicyConfig as PolicyFamily>::Policy<B>, tb: &apo_core::TensorBatch<B>) -> Tensor<B, 1> {
+    fn graph<B: Backend>(
+        &self,
+        p: &<MlpPolicyConfig as PolicyFamily>::Policy<B>,
+        tb: &apo_core::TensorBatch<B>,
+    ) -> Tensor<B, 1> {
         let dist = p.distribution(tb.obs.clone());
         match &self.f {
             HvpFn::Kl => dist.kl_from(&tb.dist_old).mean(),
@@ -308,7 +523,9 @@ impl HvpCase {
     pub fn library_hvp<B: Backend>(&self, device: &B::Device) -> Vec<f64> {
         let tb = self.batch.to_tensors::<Autodiff2<B>>(device);
         let template = self.cfg.init::<Autodiff2<B>>(device);
-        hessian_vector_product::<B, _>(&template, &self.theta, &self.v, device, |p| self.graph(p, &tb))
+        hessian_vector_product::<B, _>(&template, &self.theta, &self.v, device, |p| {
+            self.graph(p, &tb)
+        })
     }
 
     /// Reference 1: central differences, in direction `v`, of the library's gradient on
@@ -316,13 +533,24 @@ impl HvpCase {
     /// never touch NdArray<f32>.
     pub fn reference_fd_of_gradient(&self) -> Vec<f64> {
         let device = ndarray_f64();
-        fd_directional(|th| self.library_gradient::<F64>(th, &device), &self.theta, &self.v, 1e-5)
+        fd_directional(
+            |th| self.library_gradient::<F64>(th, &device),
+            &self.theta,
+            &self.v,
+            1e-5,
+        )
     }
 
     /// Reference 2: mixed central differences of the plain-f64 reference value (no
     /// autodiff at all).
     pub fn reference_fd_of_value(&self) -> Vec<f64> {
-        fd_hvp_of_value(|th| self.reference_value(th), &self.theta, &self.v, 2e-4, 2e-4)
+        fd_hvp_of_value(
+            |th| self.reference_value(th),
+            &self.theta,
+            &self.v,
+            2e-4,
+            2e-4,
+        )
     }
 }
 
@@ -330,7 +558,12 @@ impl HvpCase {
 /// MLP (obs 4, hidden (8, 8), 5 actions): the mean KL at θ = θ_old (the Fisher matrix of
 /// the trust region), the mean KL at θ ≠ θ_old, and APO's objective at θ ≠ θ_old.
 pub fn hvp_cases() -> Vec<HvpCase> {
-    let apo = Objective::Apo(ApoParams { k: 2.0, omega1: 0.3, h_max: HMax::Fixed(0.7), gamma: 0.5 });
+    let apo = Objective::Apo(ApoParams {
+        k: 2.0,
+        omega1: 0.3,
+        h_max: HMax::Fixed(0.7),
+        gamma: 0.5,
+    });
     let mut cases = Vec::new();
     for (i, (pname, cfg)) in policy_cases().into_iter().enumerate() {
         let (theta_old, theta, batch) = gradient_point(&cfg, 5.0, 21 + i as u64);
@@ -355,17 +588,31 @@ pub fn hvp_cases() -> Vec<HvpCase> {
 
 /// The library's HVP on backend `B` against `references[i]` for each case. Returns
 /// `(case, relative error)`.
-pub fn check_hvp<B: Backend>(device: &B::Device, tol: f64, cases: &[HvpCase], references: &[Vec<f64>]) -> Vec<(String, f64)> {
+pub fn check_hvp<B: Backend>(
+    device: &B::Device,
+    tol: f64,
+    cases: &[HvpCase],
+    references: &[Vec<f64>],
+) -> Vec<(String, f64)> {
     cases
         .iter()
         .zip(references)
         .map(|(case, reference)| {
             if let HvpFn::Objective(obj) = &case.f {
                 let r = ref_objective(&case.cfg, obj, &case.theta, &case.batch);
-                assert!(r.kink_margin > 1e-3, "{}: data near a kink ({:.1e})", case.name, r.kink_margin);
+                assert!(
+                    r.kink_margin > 1e-3,
+                    "{}: data near a kink ({:.1e})",
+                    case.name,
+                    r.kink_margin
+                );
             }
             let hv = case.library_hvp::<B>(device);
-            assert!(norm(reference) > 1e-3, "{}: degenerate reference", case.name);
+            assert!(
+                norm(reference) > 1e-3,
+                "{}: degenerate reference",
+                case.name
+            );
             let err = assert_vec_rel(&format!("HVP {}", case.name), &hv, reference, tol);
             (case.name.clone(), err)
         })
@@ -401,7 +648,10 @@ pub fn print_errors(title: &str, errors: &[(String, f64)]) {
 ///   vm = 0.1875 · (−6.6875) = −1.25390625, objective = 0.625 + 2 · 0.97265625 = 2.5703125.
 pub fn check_at_theta_j<B: Backend>(device: &B::Device, tol: f64) {
     let mean_ = vec![vec![0.3], vec![-0.2], vec![0.5], vec![0.0]];
-    let dist = RefDist::Gaussian { mean: mean_, log_std: vec![vec![-0.5]; 4] };
+    let dist = RefDist::Gaussian {
+        mean: mean_,
+        log_std: vec![vec![-0.5]; 4],
+    };
     let actions = vec![vec![0.1], vec![0.4], vec![0.2], vec![-0.3]];
     let logp_old = dist.log_prob(&actions);
     let batch = |value: [f64; 4]| RefBatch {
@@ -416,30 +666,116 @@ pub fn check_at_theta_j<B: Backend>(device: &B::Device, tol: f64) {
     };
     let on = batch([2.0, 1.0, 0.0, 1.0]);
     let off = batch([-3.0, -2.0, -4.0, -3.0]);
-    let fixed = ApoParams { k: 2.0, omega1: 0.5, h_max: HMax::Fixed(0.25), gamma: 0.5 };
-    let est = ApoParams { h_max: HMax::Estimated, ..fixed };
+    let fixed = ApoParams {
+        k: 2.0,
+        omega1: 0.5,
+        h_max: HMax::Fixed(0.25),
+        gamma: 0.5,
+    };
+    let est = ApoParams {
+        h_max: HMax::Estimated,
+        ..fixed
+    };
     // (name, objective, batch, mean_surr, mv, vm, objective)
-    let cases: Vec<(&str, Objective, &RefBatch, f64, Option<f64>, Option<f64>, f64)> = vec![
+    let cases: Vec<(
+        &str,
+        Objective,
+        &RefBatch,
+        f64,
+        Option<f64>,
+        Option<f64>,
+        f64,
+    )> = vec![
         ("trpo", Objective::Trpo, &on, 0.625, None, None, 0.625),
-        ("ppo", Objective::Ppo { clip: 0.2 }, &on, 0.625, None, None, 0.625),
-        ("apo k = 0", Objective::Apo(ApoParams { k: 0.0, ..fixed }), &on, 0.625, None, None, 0.625),
-        ("apo, switch on", Objective::Apo(fixed), &on, 0.625, Some(0.28125), Some(-0.55078125), 1.1640625),
-        ("apo, switch off", Objective::Apo(fixed), &off, 0.625, Some(0.28125), Some(-1.25390625), 2.5703125),
-        ("apo estimated |H|", Objective::Apo(est), &on, 0.625, Some(2.0625), Some(-0.55078125), 0.625 - 2.0 * (2.0625 - 0.55078125)),
-        ("papo", Objective::Papo { params: fixed, clip: 0.2 }, &on, 0.625, Some(0.15625), Some(-0.55078125), 1.4140625),
+        (
+            "ppo",
+            Objective::Ppo { clip: 0.2 },
+            &on,
+            0.625,
+            None,
+            None,
+            0.625,
+        ),
+        (
+            "apo k = 0",
+            Objective::Apo(ApoParams { k: 0.0, ..fixed }),
+            &on,
+            0.625,
+            None,
+            None,
+            0.625,
+        ),
+        (
+            "apo, switch on",
+            Objective::Apo(fixed),
+            &on,
+            0.625,
+            Some(0.28125),
+            Some(-0.55078125),
+            1.1640625,
+        ),
+        (
+            "apo, switch off",
+            Objective::Apo(fixed),
+            &off,
+            0.625,
+            Some(0.28125),
+            Some(-1.25390625),
+            2.5703125,
+        ),
+        (
+            "apo estimated |H|",
+            Objective::Apo(est),
+            &on,
+            0.625,
+            Some(2.0625),
+            Some(-0.55078125),
+            0.625 - 2.0 * (2.0625 - 0.55078125),
+        ),
+        (
+            "papo",
+            Objective::Papo {
+                params: fixed,
+                clip: 0.2,
+            },
+            &on,
+            0.625,
+            Some(0.15625),
+            Some(-0.55078125),
+            1.4140625,
+        ),
     ];
     let dist_b = dist.to_params::<B>(device);
     for (name, obj, b, ms, mv, vm, objective) in cases {
         let tb = b.to_tensors::<B>(device);
         let terms = obj.evaluate(&dist_b, &tb);
         // ratio is exactly 1 in f64 (logp_old is the same density)
-        let ratio = host(apo::ratio(dist_b.log_prob(tb.actions.clone()), tb.logp_old.clone()));
+        let ratio = host(apo::ratio(
+            dist_b.log_prob(tb.actions.clone()),
+            tb.logp_old.clone(),
+        ));
         for r in ratio {
             assert_close(&format!("{name}: ratio"), r, 1.0, tol, 1.0);
         }
-        assert_close(&format!("{name}: mean_surr"), scalar(terms.mean_surr), ms, tol, 1.0);
-        assert_close(&format!("{name}: objective"), scalar(terms.objective), objective, tol, 1.0);
-        assert_eq!(terms.mean_variance.is_some(), mv.is_some(), "{name}: mv presence");
+        assert_close(
+            &format!("{name}: mean_surr"),
+            scalar(terms.mean_surr),
+            ms,
+            tol,
+            1.0,
+        );
+        assert_close(
+            &format!("{name}: objective"),
+            scalar(terms.objective),
+            objective,
+            tol,
+            1.0,
+        );
+        assert_eq!(
+            terms.mean_variance.is_some(),
+            mv.is_some(),
+            "{name}: mv presence"
+        );
         if let (Some(a), Some(e)) = (terms.mean_variance, mv) {
             assert_close(&format!("{name}: mean_variance"), scalar(a), e, tol, 1.0);
         }
@@ -449,6 +785,11 @@ pub fn check_at_theta_j<B: Backend>(device: &B::Device, tol: f64) {
     }
     // and the bias really is 0 at ratio 1
     let tb = on.to_tensors::<B>(device);
-    let bias = scalar(apo::lower_bound_bias(dist_b.log_prob(tb.actions.clone()), tb.logp_old.clone(), tb.adv.clone(), 0.5));
+    let bias = scalar(apo::lower_bound_bias(
+        dist_b.log_prob(tb.actions.clone()),
+        tb.logp_old.clone(),
+        tb.adv.clone(),
+        0.5,
+    ));
     assert_close("bias at θ_j", bias, 0.0, tol, 1.0);
 }

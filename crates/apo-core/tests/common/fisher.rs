@@ -37,17 +37,31 @@ pub fn case(name: &str, cfg: MlpPolicyConfig, seed: u64) -> Case {
     let theta = random_theta(&cfg, &mut rng);
     let batch = sample_batch(&cfg, &theta, 32, 0.0, &mut rng);
     let vs = (0..3).map(|_| unit_vector(theta.len(), &mut rng)).collect();
-    Case { name: name.to_string(), cfg, theta, batch, vs }
+    Case {
+        name: name.to_string(),
+        cfg,
+        theta,
+        batch,
+        vs,
+    }
 }
 
 /// Gaussian (3 actions) and categorical (5 actions) MLP policies, 4 observations, hidden (5, 4).
 pub fn cases() -> Vec<Case> {
-    vec![case("gaussian (5, 4)", gaussian_cfg(4, &[5, 4], 3), 31), case("categorical (5, 4)", categorical_cfg(4, &[5, 4], 5), 32)]
+    vec![
+        case("gaussian (5, 4)", gaussian_cfg(4, &[5, 4], 3), 31),
+        case("categorical (5, 4)", categorical_cfg(4, &[5, 4], 5), 32),
+    ]
 }
 
 /// The library's `F v` on backend `B` for each of `vs`, from one operator (`None` when the
 /// family's policy has no JVP).
-pub fn library_fisher<B: Backend, F: PolicyFamily>(family: &F, c: &Case, vs: &[Vec<f64>], device: &B::Device) -> Option<Vec<Vec<f64>>> {
+pub fn library_fisher<B: Backend, F: PolicyFamily>(
+    family: &F,
+    c: &Case,
+    vs: &[Vec<f64>],
+    device: &B::Device,
+) -> Option<Vec<Vec<f64>>> {
     let tb = c.batch.to_tensors::<B>(device);
     let op = FisherOperator::new(family, &c.theta, tb.obs, &tb.dist_old);
     vs.iter().map(|v| op.apply(v)).collect()
@@ -60,7 +74,11 @@ pub fn library_fisher<B: Backend, F: PolicyFamily>(family: &F, c: &Case, vs: &[V
 /// The distribution parameters of each state as one row: (means, log-stds) or logits.
 pub fn dist_rows(d: &RefDist) -> Vec<Vec<f64>> {
     match d {
-        RefDist::Gaussian { mean, log_std } => mean.iter().zip(log_std).map(|(m, s)| m.iter().chain(s).copied().collect()).collect(),
+        RefDist::Gaussian { mean, log_std } => mean
+            .iter()
+            .zip(log_std)
+            .map(|(m, s)| m.iter().chain(s).copied().collect())
+            .collect(),
         RefDist::Categorical { logits } => logits.clone(),
     }
 }
@@ -70,12 +88,16 @@ pub fn params_rows<B: Backend>(d: DistParams<B>) -> Vec<Vec<f64>> {
     let to_rows = |t: Tensor<B, 2>| {
         let [n, m] = t.dims();
         let v = host(t);
-        (0..n).map(|i| v[i * m..(i + 1) * m].to_vec()).collect::<Vec<_>>()
+        (0..n)
+            .map(|i| v[i * m..(i + 1) * m].to_vec())
+            .collect::<Vec<_>>()
     };
     match d {
-        DistParams::Gaussian { mean, log_std } => {
-            to_rows(mean).into_iter().zip(to_rows(log_std)).map(|(m, s)| m.into_iter().chain(s).collect()).collect()
-        }
+        DistParams::Gaussian { mean, log_std } => to_rows(mean)
+            .into_iter()
+            .zip(to_rows(log_std))
+            .map(|(m, s)| m.into_iter().chain(s).collect())
+            .collect(),
         DistParams::Categorical { logits } => to_rows(logits),
     }
 }
@@ -99,10 +121,23 @@ pub fn check_jvp<B: Backend>(device: &B::Device, tol: f64) -> Vec<(String, f64)>
         let obs = t2::<B>(&c.batch.obs, device);
         for (i, v) in c.vs.iter().enumerate() {
             let tangent = unflatten(policy.clone(), from_host::<B>(v, device));
-            let jv = params_rows(policy.distribution_jvp(obs.clone(), &tangent).expect("the MLP policy has a JVP"));
+            let jv = params_rows(
+                policy
+                    .distribution_jvp(obs.clone(), &tangent)
+                    .expect("the MLP policy has a JVP"),
+            );
             let eps = 1e-5;
-            let at = |s: f64| -> Vec<f64> { c.theta.iter().zip(v).map(|(t, vi)| t + s * eps * vi).collect() };
-            let (plus, minus) = (ref_policy(&c.cfg, &at(1.0), &c.batch.obs), ref_policy(&c.cfg, &at(-1.0), &c.batch.obs));
+            let at = |s: f64| -> Vec<f64> {
+                c.theta
+                    .iter()
+                    .zip(v)
+                    .map(|(t, vi)| t + s * eps * vi)
+                    .collect()
+            };
+            let (plus, minus) = (
+                ref_policy(&c.cfg, &at(1.0), &c.batch.obs),
+                ref_policy(&c.cfg, &at(-1.0), &c.batch.obs),
+            );
             let reference: Vec<f64> = dist_rows(&plus)
                 .iter()
                 .flatten()
@@ -136,7 +171,10 @@ pub fn reference_fisher(c: &Case) -> Vec<Vec<f64>> {
             x[i] = c.theta[i] - h;
             let minus = dist_rows(&ref_policy(&c.cfg, &x, &c.batch.obs));
             x[i] = c.theta[i];
-            plus.iter().zip(&minus).map(|(a, b)| a.iter().zip(b).map(|(u, w)| (u - w) / (2.0 * h)).collect()).collect()
+            plus.iter()
+                .zip(&minus)
+                .map(|(a, b)| a.iter().zip(b).map(|(u, w)| (u - w) / (2.0 * h)).collect())
+                .collect()
         })
         .collect();
     let metric: Vec<Vec<Vec<f64>>> = match &c.batch.dist_old {
@@ -156,7 +194,13 @@ pub fn reference_fisher(c: &Case) -> Vec<Vec<f64>> {
             .iter()
             .map(|l| {
                 let q = softmax(l);
-                (0..q.len()).map(|a| (0..q.len()).map(|b| if a == b { q[a] } else { 0.0 } - q[a] * q[b]).collect()).collect()
+                (0..q.len())
+                    .map(|a| {
+                        (0..q.len())
+                            .map(|b| if a == b { q[a] } else { 0.0 } - q[a] * q[b])
+                            .collect()
+                    })
+                    .collect()
             })
             .collect(),
     };
@@ -164,7 +208,9 @@ pub fn reference_fisher(c: &Case) -> Vec<Vec<f64>> {
     let mut f = vec![vec![0.0; p]; p];
     for (s, m) in metric.iter().enumerate() {
         // M_s J_s, column j: Σ_l m[k][l] jac[j][s][l]
-        let mj: Vec<Vec<f64>> = (0..p).map(|j| m.iter().map(|row| dot(row, &jac[j][s])).collect()).collect();
+        let mj: Vec<Vec<f64>> = (0..p)
+            .map(|j| m.iter().map(|row| dot(row, &jac[j][s])).collect())
+            .collect();
         for i in 0..p {
             for j in 0..p {
                 f[i][j] += dot(&jac[i][s], &mj[j]) / n as f64;
@@ -184,7 +230,8 @@ pub fn check_fisher_vs_explicit<B: Backend>(device: &B::Device, tol: f64) -> Vec
     let mut errors = Vec::new();
     for c in cases() {
         let f = reference_fisher(&c);
-        let fvs = library_fisher::<B, _>(&c.cfg, &c, &c.vs, device).expect("the MLP policy has a JVP");
+        let fvs =
+            library_fisher::<B, _>(&c.cfg, &c, &c.vs, device).expect("the MLP policy has a JVP");
         for (i, (v, fv)) in c.vs.iter().zip(&fvs).enumerate() {
             let what = format!("{}, v{i}: F v vs Jᵀ M J v / N", c.name);
             let err = assert_vec_rel(&what, fv, &matvec(&f, v), tol);

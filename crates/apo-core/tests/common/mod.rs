@@ -45,10 +45,16 @@ pub type F64 = NdArray<f64>;
 pub fn assert_float_dtype<B: Backend>(device: &B::Device, expected: DType, name: &str) {
     let t = Tensor::<B, 1>::from_data(TensorData::new(vec![1.0f64, 1.0 + 1e-12], [2]), device);
     let dtype = t.dtype();
-    assert_eq!(dtype, expected, "{name} creates {dtype:?} tensors, expected {expected:?}");
+    assert_eq!(
+        dtype, expected,
+        "{name} creates {dtype:?} tensors, expected {expected:?}"
+    );
     if expected == DType::F64 {
         let v: Vec<f64> = t.into_data().iter::<f64>().collect();
-        assert!(v[1] - v[0] > 5e-13, "{name} does not keep float64 precision: {v:?}");
+        assert!(
+            v[1] - v[0] > 5e-13,
+            "{name} does not keep float64 precision: {v:?}"
+        );
     }
 }
 
@@ -75,7 +81,10 @@ pub fn wgpu() -> WgpuDevice {
             use burn::backend::wgpu::{graphics::AutoGraphicsApi, init_setup, RuntimeOptions};
             let setup = init_setup::<AutoGraphicsApi>(&dev, RuntimeOptions::default());
             let info = setup.adapter.get_info();
-            format!("{} ({:?}, {:?}, driver {} {})", info.name, info.backend, info.device_type, info.driver, info.driver_info)
+            format!(
+                "{} ({:?}, {:?}, driver {} {})",
+                info.name, info.backend, info.device_type, info.driver, info.driver_info
+            )
         })
         .map_err(|e| {
             e.downcast_ref::<String>()
@@ -146,7 +155,12 @@ impl Rng {
 /// `‖a − e‖₂ / ‖e‖₂`.
 pub fn rel_err(a: &[f64], e: &[f64]) -> f64 {
     assert_eq!(a.len(), e.len(), "length mismatch");
-    let num: f64 = a.iter().zip(e).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+    let num: f64 = a
+        .iter()
+        .zip(e)
+        .map(|(x, y)| (x - y).powi(2))
+        .sum::<f64>()
+        .sqrt();
     let den: f64 = e.iter().map(|y| y * y).sum::<f64>().sqrt();
     assert!(den > 0.0, "reference vector is zero");
     num / den
@@ -156,7 +170,11 @@ pub fn rel_err(a: &[f64], e: &[f64]) -> f64 {
 pub fn assert_close(what: &str, a: f64, e: f64, tol: f64, floor: f64) {
     let scale = e.abs().max(floor);
     assert!(a.is_finite(), "{what}: got {a}, expected {e}");
-    assert!((a - e).abs() <= tol * scale, "{what}: got {a:.17e}, expected {e:.17e} (|diff| {:.3e} > {tol:.1e} × {scale:.3e})", (a - e).abs());
+    assert!(
+        (a - e).abs() <= tol * scale,
+        "{what}: got {a:.17e}, expected {e:.17e} (|diff| {:.3e} > {tol:.1e} × {scale:.3e})",
+        (a - e).abs()
+    );
 }
 
 /// `assert_close` with a pure relative tolerance (`e` must not be 0).
@@ -167,7 +185,10 @@ pub fn assert_rel(what: &str, a: f64, e: f64, tol: f64) {
 
 pub fn assert_vec_rel(what: &str, a: &[f64], e: &[f64], tol: f64) -> f64 {
     let err = rel_err(a, e);
-    assert!(err <= tol, "{what}: relative error {err:.3e} > {tol:.1e}\n  got      {a:?}\n  expected {e:?}");
+    assert!(
+        err <= tol,
+        "{what}: relative error {err:.3e} > {tol:.1e}\n  got      {a:?}\n  expected {e:?}"
+    );
     err
 }
 
@@ -218,8 +239,13 @@ const LN_2PI: f64 = 1.837_877_066_409_345_5; // ln(2π)
 /// Distribution parameters of a batch, on the host.
 #[derive(Debug, Clone)]
 pub enum RefDist {
-    Gaussian { mean: Vec<Vec<f64>>, log_std: Vec<Vec<f64>> },
-    Categorical { logits: Vec<Vec<f64>> },
+    Gaussian {
+        mean: Vec<Vec<f64>>,
+        log_std: Vec<Vec<f64>>,
+    },
+    Categorical {
+        logits: Vec<Vec<f64>>,
+    },
 }
 
 impl RefDist {
@@ -232,10 +258,13 @@ impl RefDist {
 
     pub fn to_params<B: Backend>(&self, device: &B::Device) -> DistParams<B> {
         match self {
-            RefDist::Gaussian { mean, log_std } => {
-                DistParams::Gaussian { mean: t2(mean, device), log_std: t2(log_std, device) }
-            }
-            RefDist::Categorical { logits } => DistParams::Categorical { logits: t2(logits, device) },
+            RefDist::Gaussian { mean, log_std } => DistParams::Gaussian {
+                mean: t2(mean, device),
+                log_std: t2(log_std, device),
+            },
+            RefDist::Categorical { logits } => DistParams::Categorical {
+                logits: t2(logits, device),
+            },
         }
     }
 
@@ -266,7 +295,11 @@ impl RefDist {
         match self {
             RefDist::Gaussian { log_std, .. } => log_std
                 .iter()
-                .map(|row| row.iter().map(|s| 0.5 * (2.0 * std::f64::consts::PI * std::f64::consts::E).ln() + s).sum())
+                .map(|row| {
+                    row.iter()
+                        .map(|s| 0.5 * (2.0 * std::f64::consts::PI * std::f64::consts::E).ln() + s)
+                        .sum()
+                })
                 .collect(),
             RefDist::Categorical { logits } => logits
                 .iter()
@@ -278,17 +311,30 @@ impl RefDist {
     /// `KL(old ‖ self)` per state, from the textbook closed forms.
     pub fn kl_from(&self, old: &RefDist) -> Vec<f64> {
         match (old, self) {
-            (RefDist::Gaussian { mean: m0, log_std: s0 }, RefDist::Gaussian { mean: m1, log_std: s1 }) => (0..m0.len())
+            (
+                RefDist::Gaussian {
+                    mean: m0,
+                    log_std: s0,
+                },
+                RefDist::Gaussian {
+                    mean: m1,
+                    log_std: s1,
+                },
+            ) => (0..m0.len())
                 .map(|n| {
                     (0..m0[n].len())
                         .map(|i| {
                             let (sig0, sig1) = (s0[n][i].exp(), s1[n][i].exp());
-                            (sig1 / sig0).ln() + (sig0 * sig0 + (m0[n][i] - m1[n][i]).powi(2)) / (2.0 * sig1 * sig1) - 0.5
+                            (sig1 / sig0).ln()
+                                + (sig0 * sig0 + (m0[n][i] - m1[n][i]).powi(2))
+                                    / (2.0 * sig1 * sig1)
+                                - 0.5
                         })
                         .sum()
                 })
                 .collect(),
-            (RefDist::Categorical { logits: l0 }, RefDist::Categorical { logits: l1 }) => (0..l0.len())
+            (RefDist::Categorical { logits: l0 }, RefDist::Categorical { logits: l1 }) => (0..l0
+                .len())
                 .map(|n| {
                     let (p, q) = (softmax(&l0[n]), softmax(&l1[n]));
                     p.iter().zip(&q).map(|(pi, qi)| pi * (pi / qi).ln()).sum()
@@ -365,7 +411,10 @@ pub fn ref_policy(cfg: &MlpPolicyConfig, theta: &[f64], obs: &[Vec<f64>]) -> Ref
     match cfg.action {
         ActionKind::Continuous { dim } => {
             let log_std = theta[theta.len() - dim..].to_vec();
-            RefDist::Gaussian { log_std: vec![log_std; out.len()], mean: out }
+            RefDist::Gaussian {
+                log_std: vec![log_std; out.len()],
+                mean: out,
+            }
         }
         ActionKind::Discrete { .. } => RefDist::Categorical { logits: out },
     }
@@ -381,7 +430,12 @@ pub fn gaussian_cfg(obs: usize, hidden: &[usize], act: usize) -> MlpPolicyConfig
 }
 
 pub fn categorical_cfg(obs: usize, hidden: &[usize], n: usize) -> MlpPolicyConfig {
-    MlpPolicyConfig { observation_dim: obs, action: ActionKind::Discrete { n }, hidden: hidden.to_vec(), init_log_std: 0.0 }
+    MlpPolicyConfig {
+        observation_dim: obs,
+        action: ActionKind::Discrete { n },
+        hidden: hidden.to_vec(),
+        init_log_std: 0.0,
+    }
 }
 
 /// Random policy parameters: weights ~ N(0, 0.5²/fan-in-ish), log-std around −0.4.
@@ -441,7 +495,12 @@ pub fn sample_actions(dist: &RefDist, rng: &mut Rng) -> Vec<Vec<f64>> {
         RefDist::Gaussian { mean, log_std } => mean
             .iter()
             .zip(log_std)
-            .map(|(m, s)| m.iter().zip(s).map(|(mi, si)| mi + si.exp() * rng.normal()).collect())
+            .map(|(m, s)| {
+                m.iter()
+                    .zip(s)
+                    .map(|(mi, si)| mi + si.exp() * rng.normal())
+                    .collect()
+            })
             .collect(),
         RefDist::Categorical { logits } => logits
             .iter()
@@ -457,7 +516,9 @@ pub fn sample_actions(dist: &RefDist, rng: &mut Rng) -> Vec<Vec<f64>> {
                         break;
                     }
                 }
-                (0..p.len()).map(|i| if i == k { 1.0 } else { 0.0 }).collect()
+                (0..p.len())
+                    .map(|i| if i == k { 1.0 } else { 0.0 })
+                    .collect()
             })
             .collect(),
     }
@@ -466,7 +527,13 @@ pub fn sample_actions(dist: &RefDist, rng: &mut Rng) -> Vec<Vec<f64>> {
 /// A batch of `n` transitions collected by the MLP policy `theta_old` (actions sampled from
 /// it, `logp_old` and `dist_old` its own), with random values, deltas and advantages.
 /// `value_mean` shifts the critic values (it decides the side of the `min_J_sq` switch).
-pub fn sample_batch(cfg: &MlpPolicyConfig, theta_old: &[f64], n: usize, value_mean: f64, rng: &mut Rng) -> RefBatch {
+pub fn sample_batch(
+    cfg: &MlpPolicyConfig,
+    theta_old: &[f64],
+    n: usize,
+    value_mean: f64,
+    rng: &mut Rng,
+) -> RefBatch {
     let obs = rng.matrix(n, cfg.observation_dim, 1.0);
     let dist_old = ref_policy(cfg, theta_old, &obs);
     let actions = sample_actions(&dist_old, rng);
@@ -516,7 +583,9 @@ pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> R
         let mut s = 0.0;
         for i in 0..n {
             let r = ratio[i];
-            *kink = kink.min((r - (1.0 - eps)).abs()).min((r - (1.0 + eps)).abs());
+            *kink = kink
+                .min((r - (1.0 - eps)).abs())
+                .min((r - (1.0 + eps)).abs());
             s += (r * b.adv[i]).min(clampf(r, 1.0 - eps, 1.0 + eps) * b.adv[i]);
         }
         s / n as f64
@@ -531,8 +600,14 @@ pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> R
         kink_margin: kink,
     };
     match *obj {
-        Objective::A2c => only(mean(&(0..n).map(|i| logp[i] * b.adv[i]).collect::<Vec<_>>()), kink),
-        Objective::Trpo => only(mean(&(0..n).map(|i| ratio[i] * b.adv[i]).collect::<Vec<_>>()), kink),
+        Objective::A2c => only(
+            mean(&(0..n).map(|i| logp[i] * b.adv[i]).collect::<Vec<_>>()),
+            kink,
+        ),
+        Objective::Trpo => only(
+            mean(&(0..n).map(|i| ratio[i] * b.adv[i]).collect::<Vec<_>>()),
+            kink,
+        ),
         Objective::Ppo { clip } => {
             let ms = surr_clipped(clip, &mut kink);
             only(ms, kink)
@@ -555,11 +630,14 @@ pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> R
                 .map(|i| match p.h_max {
                     HMax::Fixed(w2) => w2,
                     HMax::Estimated => {
-                        2.0 * g * (1.0 + g) / (1.0 - g).powi(2) * max_abs_adv * kl_mean + (ratio[i] * b.adv[i]).abs()
+                        2.0 * g * (1.0 + g) / (1.0 - g).powi(2) * max_abs_adv * kl_mean
+                            + (ratio[i] * b.adv[i]).abs()
                     }
                 })
                 .collect();
-            let t = |r: f64, i: usize| (r - 1.0) * b.delta[i] * b.delta[i] + 2.0 * r * b.delta[i] * h[i];
+            let t = |r: f64, i: usize| {
+                (r - 1.0) * b.delta[i] * b.delta[i] + 2.0 * r * b.delta[i] * h[i]
+            };
             let mut mv_sum = 0.0;
             for i in 0..n {
                 match clip {
@@ -584,8 +662,16 @@ pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> R
             let bias = 4.0 * g * mean_dlogp.abs() * max_adv / (1.0 - g).powi(2);
             let mean_v = mean(&b.value);
             let margin = ms + mean_v - bias;
-            let min_j_sq = if margin < 0.0 { 0.0 } else { ms * ms + 2.0 * mean_v * ms };
-            let spread = mean(&(0..n).map(|i| b.adv[i].abs().powi(2) + 2.0 * b.adv[i].abs() * b.value[i]).collect::<Vec<_>>());
+            let min_j_sq = if margin < 0.0 {
+                0.0
+            } else {
+                ms * ms + 2.0 * mean_v * ms
+            };
+            let spread = mean(
+                &(0..n)
+                    .map(|i| b.adv[i].abs().powi(2) + 2.0 * b.adv[i].abs() * b.value[i])
+                    .collect::<Vec<_>>(),
+            );
             let vm = p.omega1 * (1.0 - g * g) / p.k * spread - min_j_sq;
             RefTerms {
                 objective: ms - p.k * (mv + vm),
@@ -608,7 +694,12 @@ pub fn ref_terms_dist(obj: &Objective, dist: &RefDist, b: &RefBatch) -> RefTerms
 }
 
 /// The objective of the MLP policy with parameters `theta`.
-pub fn ref_objective(cfg: &MlpPolicyConfig, obj: &Objective, theta: &[f64], b: &RefBatch) -> RefTerms {
+pub fn ref_objective(
+    cfg: &MlpPolicyConfig,
+    obj: &Objective,
+    theta: &[f64],
+    b: &RefBatch,
+) -> RefTerms {
     ref_terms_dist(obj, &ref_policy(cfg, theta, &b.obs), b)
 }
 
@@ -637,17 +728,31 @@ pub fn fd_gradient(f: impl Fn(&[f64]) -> f64, theta: &[f64], h: f64) -> Vec<f64>
 }
 
 /// Central differences in direction `v` of a gradient: `(g(θ + εv) − g(θ − εv)) / 2ε`.
-pub fn fd_directional(g: impl Fn(&[f64]) -> Vec<f64>, theta: &[f64], v: &[f64], eps: f64) -> Vec<f64> {
+pub fn fd_directional(
+    g: impl Fn(&[f64]) -> Vec<f64>,
+    theta: &[f64],
+    v: &[f64],
+    eps: f64,
+) -> Vec<f64> {
     let plus: Vec<f64> = theta.iter().zip(v).map(|(t, vi)| t + eps * vi).collect();
     let minus: Vec<f64> = theta.iter().zip(v).map(|(t, vi)| t - eps * vi).collect();
     let (gp, gm) = (g(&plus), g(&minus));
-    gp.iter().zip(&gm).map(|(a, b)| (a - b) / (2.0 * eps)).collect()
+    gp.iter()
+        .zip(&gm)
+        .map(|(a, b)| (a - b) / (2.0 * eps))
+        .collect()
 }
 
 /// `∇²f(θ)·v` by mixed central differences of `f` alone:
 /// `[f(θ+h eᵢ+εv) − f(θ+h eᵢ−εv) − f(θ−h eᵢ+εv) + f(θ−h eᵢ−εv)] / 4hε`.
 /// No gradient code is involved, so this reference is independent of any autodiff.
-pub fn fd_hvp_of_value(f: impl Fn(&[f64]) -> f64, theta: &[f64], v: &[f64], h: f64, eps: f64) -> Vec<f64> {
+pub fn fd_hvp_of_value(
+    f: impl Fn(&[f64]) -> f64,
+    theta: &[f64],
+    v: &[f64],
+    h: f64,
+    eps: f64,
+) -> Vec<f64> {
     let mut x = theta.to_vec();
     let mut eval = |i: usize, si: f64, sv: f64| {
         for (j, xj) in x.iter_mut().enumerate() {
@@ -657,7 +762,10 @@ pub fn fd_hvp_of_value(f: impl Fn(&[f64]) -> f64, theta: &[f64], v: &[f64], h: f
         f(&x)
     };
     (0..theta.len())
-        .map(|i| (eval(i, 1.0, 1.0) - eval(i, 1.0, -1.0) - eval(i, -1.0, 1.0) + eval(i, -1.0, -1.0)) / (4.0 * h * eps))
+        .map(|i| {
+            (eval(i, 1.0, 1.0) - eval(i, 1.0, -1.0) - eval(i, -1.0, 1.0) + eval(i, -1.0, -1.0))
+                / (4.0 * h * eps)
+        })
         .collect()
 }
 

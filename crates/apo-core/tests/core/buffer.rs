@@ -9,13 +9,24 @@ use apo_core::policy::ActionKind;
 use apo_core::tensor_batch::TensorBatch;
 use common::*;
 
-const LAYOUT: BufferLayout = BufferLayout { observation_dim: 2, action_width: 1, dist_width: 2 };
+const LAYOUT: BufferLayout = BufferLayout {
+    observation_dim: 2,
+    action_width: 1,
+    dist_width: 2,
+};
 
 /// Stores a path of `(reward, value)` steps; the observation is `(path, t)` so rows can
 /// be traced.
 fn store_path(buf: &mut RolloutBuffer, path: f32, steps: &[(f32, f32)]) {
     for (t, &(r, v)) in steps.iter().enumerate() {
-        buf.store(&[path, t as f32], &[t as f32 * 0.1], -(t as f32), &[path, -path], v, r);
+        buf.store(
+            &[path, t as f32],
+            &[t as f32 * 0.1],
+            -(t as f32),
+            &[path, -path],
+            v,
+            r,
+        );
     }
 }
 
@@ -111,14 +122,24 @@ fn several_paths_in_one_batch_are_independent_and_normalized_together() {
     assert_eq!(batch.len, 10);
 
     let cat = |a: &[f64], b: &[f64], c: &[f64]| [a, b, c].concat();
-    assert_exact("delta", &f64s(&batch.delta), &cat(&A_DELTA, &B_DELTA, &C_DELTA));
+    assert_exact(
+        "delta",
+        &f64s(&batch.delta),
+        &cat(&A_DELTA, &B_DELTA, &C_DELTA),
+    );
     assert_exact("ret", &f64s(&batch.ret), &cat(&A_RET, &B_RET, &C_RET));
     // normalization is over the whole batch, not per path
     let raw = cat(&A_ADV, &B_ADV, &C_ADV);
     assert_exact("adv", &f64s(&batch.adv), &normalized(&raw));
     let adv = f64s(&batch.adv);
     assert_close("mean(adv)", mean(&adv), 0.0, 1e-6, 1.0);
-    assert_close("std(adv)", (adv.iter().map(|a| a * a).sum::<f64>() / 10.0).sqrt(), 1.0, 1e-6, 1.0);
+    assert_close(
+        "std(adv)",
+        (adv.iter().map(|a| a * a).sum::<f64>() / 10.0).sqrt(),
+        1.0,
+        1e-6,
+        1.0,
+    );
 
     // the stored per-step fields, in order
     let obs: Vec<(f32, f32)> = batch.obs.chunks(2).map(|o| (o[0], o[1])).collect();
@@ -142,7 +163,10 @@ fn several_paths_in_one_batch_are_independent_and_normalized_together() {
 /// normalizes the advantages over all of them.
 #[test]
 fn take_all_joins_the_buffers_of_several_environments() {
-    let mut bufs = vec![RolloutBuffer::new(LAYOUT, 0.5, 0.5, 4), RolloutBuffer::new(LAYOUT, 0.5, 0.5, 4)];
+    let mut bufs = vec![
+        RolloutBuffer::new(LAYOUT, 0.5, 0.5, 4),
+        RolloutBuffer::new(LAYOUT, 0.5, 0.5, 4),
+    ];
     store_path(&mut bufs[0], 0.0, &A);
     bufs[0].finish_path(0.0);
     store_path(&mut bufs[1], 1.0, &B);
@@ -152,9 +176,17 @@ fn take_all_joins_the_buffers_of_several_environments() {
     let batch = RolloutBuffer::take_all(&mut bufs);
     assert!(bufs.iter().all(|b| b.is_empty()));
     let cat = |a: &[f64], b: &[f64], c: &[f64]| [a, c, b].concat(); // buffer 0 (A, C), then buffer 1 (B)
-    assert_exact("delta", &f64s(&batch.delta), &cat(&A_DELTA, &B_DELTA, &C_DELTA));
+    assert_exact(
+        "delta",
+        &f64s(&batch.delta),
+        &cat(&A_DELTA, &B_DELTA, &C_DELTA),
+    );
     assert_exact("ret", &f64s(&batch.ret), &cat(&A_RET, &B_RET, &C_RET));
-    assert_exact("adv", &f64s(&batch.adv), &normalized(&cat(&A_ADV, &B_ADV, &C_ADV)));
+    assert_exact(
+        "adv",
+        &f64s(&batch.adv),
+        &normalized(&cat(&A_ADV, &B_ADV, &C_ADV)),
+    );
     assert_eq!(batch.obs[2 * 3], 2.0, "row 3 is the first step of C");
 }
 
@@ -165,16 +197,34 @@ fn take_all_joins_the_buffers_of_several_environments() {
 #[test]
 fn gae_and_returns_match_their_sum_definitions() {
     let mut rng = Rng::new(9);
-    let steps: Vec<(f32, f32)> = (0..25).map(|_| (rng.normal() as f32, rng.normal() as f32)).collect();
+    let steps: Vec<(f32, f32)> = (0..25)
+        .map(|_| (rng.normal() as f32, rng.normal() as f32))
+        .collect();
     let last = 0.75f32;
     let (g, l) = (0.99f64, 0.97f64);
     let r: Vec<f64> = steps.iter().map(|s| f64::from(s.0)).collect();
-    let v: Vec<f64> = steps.iter().map(|s| f64::from(s.1)).chain([f64::from(last)]).collect();
+    let v: Vec<f64> = steps
+        .iter()
+        .map(|s| f64::from(s.1))
+        .chain([f64::from(last)])
+        .collect();
     let t_len = r.len();
     let delta: Vec<f64> = (0..t_len).map(|t| r[t] + g * v[t + 1] - v[t]).collect();
-    let adv: Vec<f64> = (0..t_len).map(|t| (t..t_len).map(|k| (g * l).powi((k - t) as i32) * delta[k]).sum()).collect();
-    let ret: Vec<f64> =
-        (0..t_len).map(|t| (t..t_len).map(|k| g.powi((k - t) as i32) * r[k]).sum::<f64>() + g.powi((t_len - t) as i32) * v[t_len]).collect();
+    let adv: Vec<f64> = (0..t_len)
+        .map(|t| {
+            (t..t_len)
+                .map(|k| (g * l).powi((k - t) as i32) * delta[k])
+                .sum()
+        })
+        .collect();
+    let ret: Vec<f64> = (0..t_len)
+        .map(|t| {
+            (t..t_len)
+                .map(|k| g.powi((k - t) as i32) * r[k])
+                .sum::<f64>()
+                + g.powi((t_len - t) as i32) * v[t_len]
+        })
+        .collect();
 
     for lambda in [l, 0.0, 1.0] {
         let mut buf = RolloutBuffer::new(LAYOUT, g, lambda, 25);
@@ -190,7 +240,12 @@ fn gae_and_returns_match_their_sum_definitions() {
         };
         assert_vec_rel(&format!("λ {lambda}: delta"), &f64s(&b.delta), &delta, 1e-6);
         assert_vec_rel(&format!("λ {lambda}: ret"), &f64s(&b.ret), &ret, 1e-6);
-        assert_vec_rel(&format!("λ {lambda}: adv"), &f64s(&b.adv), &normalized(&expected_adv), 1e-5);
+        assert_vec_rel(
+            &format!("λ {lambda}: adv"),
+            &f64s(&b.adv),
+            &normalized(&expected_adv),
+            1e-5,
+        );
     }
 }
 
@@ -227,22 +282,44 @@ fn store_checks_widths() {
 #[test]
 fn tensor_batch_reads_the_stored_distributions() {
     let device = ndarray_f64();
-    let layout = BufferLayout { observation_dim: 1, action_width: 2, dist_width: 4 };
+    let layout = BufferLayout {
+        observation_dim: 1,
+        action_width: 2,
+        dist_width: 4,
+    };
     let mut buf = RolloutBuffer::new(layout, 0.9, 0.9, 2);
-    buf.store(&[0.0], &[0.1, 0.2], -1.0, &[1.0, 2.0, -0.5, -0.25], 0.0, 1.0);
-    buf.store(&[1.0], &[0.3, 0.4], -2.0, &[3.0, 4.0, -1.5, -1.25], 0.0, 1.0);
+    buf.store(
+        &[0.0],
+        &[0.1, 0.2],
+        -1.0,
+        &[1.0, 2.0, -0.5, -0.25],
+        0.0,
+        1.0,
+    );
+    buf.store(
+        &[1.0],
+        &[0.3, 0.4],
+        -2.0,
+        &[3.0, 4.0, -1.5, -1.25],
+        0.0,
+        1.0,
+    );
     buf.finish_path(0.0);
     let batch = buf.take();
     let tb = TensorBatch::<F64>::new(&batch, ActionKind::Continuous { dim: 2 }, &device);
     // the host batch is f32; on a float64 backend the tensors must be float64
     assert_eq!(tb.obs.dtype(), burn::tensor::DType::F64);
     assert_eq!(tb.adv.dtype(), burn::tensor::DType::F64);
-    let DistParams::Gaussian { mean, log_std } = &tb.dist_old else { panic!("family") };
+    let DistParams::Gaussian { mean, log_std } = &tb.dist_old else {
+        panic!("family")
+    };
     assert_eq!(host(mean.clone()), vec![1.0, 2.0, 3.0, 4.0]);
     assert_eq!(host(log_std.clone()), vec![-0.5, -0.25, -1.5, -1.25]);
     assert_eq!(host(tb.logp_old.clone()), vec![-1.0, -2.0]);
     let tb = TensorBatch::<F64>::new(&batch, ActionKind::Discrete { n: 4 }, &device);
-    let DistParams::Categorical { logits } = &tb.dist_old else { panic!("family") };
+    let DistParams::Categorical { logits } = &tb.dist_old else {
+        panic!("family")
+    };
     assert_eq!(logits.dims(), [2, 4]);
     // and the minibatch selection keeps rows together
     let sel = tb.select(&[1]);

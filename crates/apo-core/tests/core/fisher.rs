@@ -28,13 +28,17 @@ use apo_core::fisher::fisher_vector_product;
 use apo_core::hvp::{hessian_vector_product, Autodiff2};
 use apo_core::objective::{ApoParams, HMax, Objective};
 use apo_core::policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
-use apo_core::trust_region::{conjugate_gradient, dot as tr_dot, trust_region_step, TrustRegionConfig};
+use apo_core::trust_region::{
+    conjugate_gradient, dot as tr_dot, trust_region_step, TrustRegionConfig,
+};
 use burn::backend::{Autodiff, Wgpu};
 use burn::module::Module;
 use burn::tensor::backend::Backend;
 use burn::tensor::Tensor;
 use common::backend::{print_errors, HvpCase, HvpFn};
-use common::fisher::{cases, check_fisher_vs_explicit, check_jvp, library_fisher, matvec, reference_fisher, Case};
+use common::fisher::{
+    cases, check_fisher_vs_explicit, check_jvp, library_fisher, matvec, reference_fisher, Case,
+};
 use common::*;
 
 // ---------------------------------------------------------------------------------------
@@ -76,7 +80,8 @@ fn jvp_matches_finite_differences_wgpu() {
 
 fn check_fisher_vs_hvp<B: Backend>(device: &B::Device, tol: f64) {
     for c in cases() {
-        let fvs = library_fisher::<B, _>(&c.cfg, &c, &c.vs, device).expect("the MLP policy has a JVP");
+        let fvs =
+            library_fisher::<B, _>(&c.cfg, &c, &c.vs, device).expect("the MLP policy has a JVP");
         for (i, (v, fv)) in c.vs.iter().zip(&fvs).enumerate() {
             let hv = library_kl_hvp(&c, v);
             assert!(norm(&hv) > 1e-3, "{}: degenerate HVP", c.name);
@@ -94,7 +99,12 @@ fn fisher_product_equals_kl_hvp_ndarray_f64() {
     for c in cases() {
         let tb = c.batch.to_tensors::<F64>(&device);
         let once = fisher_vector_product(&c.cfg, &c.theta, tb.obs, &tb.dist_old, &c.vs[1]);
-        assert_eq!(once, library_fisher::<F64, _>(&c.cfg, &c, &c.vs[1..2], &device).map(|mut f| f.remove(0)), "{}", c.name);
+        assert_eq!(
+            once,
+            library_fisher::<F64, _>(&c.cfg, &c, &c.vs[1..2], &device).map(|mut f| f.remove(0)),
+            "{}",
+            c.name
+        );
     }
 }
 
@@ -114,8 +124,19 @@ fn explicit_fisher_is_the_kl_hessian() {
     for c in cases() {
         let f = reference_fisher(&c);
         for (i, v) in c.vs.iter().enumerate() {
-            let hv = fd_hvp_of_value(|th| ref_mean_kl(&c.cfg, th, &c.batch), &c.theta, v, 2e-4, 2e-4);
-            let err = assert_vec_rel(&format!("{}, v{i}: Jᵀ M J v / N vs FD Hessian of the KL", c.name), &matvec(&f, v), &hv, 1e-6);
+            let hv = fd_hvp_of_value(
+                |th| ref_mean_kl(&c.cfg, th, &c.batch),
+                &c.theta,
+                v,
+                2e-4,
+                2e-4,
+            );
+            let err = assert_vec_rel(
+                &format!("{}, v{i}: Jᵀ M J v / N vs FD Hessian of the KL", c.name),
+                &matvec(&f, v),
+                &hv,
+                1e-6,
+            );
             eprintln!("  {err:9.2e}  {}, v{i}", c.name);
         }
     }
@@ -124,13 +145,19 @@ fn explicit_fisher_is_the_kl_hessian() {
 #[test]
 fn fisher_product_matches_explicit_fisher_ndarray_f64() {
     let errors = check_fisher_vs_explicit::<F64>(&ndarray_f64(), 1e-8);
-    print_errors("F v relative error, NdArray<f64> vs explicit Jᵀ M J / N", &errors);
+    print_errors(
+        "F v relative error, NdArray<f64> vs explicit Jᵀ M J / N",
+        &errors,
+    );
 }
 
 #[test]
 fn fisher_product_matches_explicit_fisher_wgpu() {
     let errors = check_fisher_vs_explicit::<Wgpu>(&wgpu(), 1e-4);
-    print_errors("F v relative error, wgpu (f32) vs explicit Jᵀ M J / N", &errors);
+    print_errors(
+        "F v relative error, wgpu (f32) vs explicit Jᵀ M J / N",
+        &errors,
+    );
 }
 
 /// The log-std of a Gaussian policy enters no mean and has `M = 2` in every state, so
@@ -139,10 +166,21 @@ fn fisher_product_matches_explicit_fisher_wgpu() {
 fn fisher_of_the_log_std_is_two() {
     let device = ndarray_f64();
     let c = &cases()[0];
-    let ActionKind::Continuous { dim } = c.cfg.action else { unreachable!() };
+    let ActionKind::Continuous { dim } = c.cfg.action else {
+        unreachable!()
+    };
     let p = c.theta.len();
-    let es: Vec<Vec<f64>> = (0..dim).map(|k| (0..p).map(|i| if i == p - dim + k { 1.0 } else { 0.0 }).collect()).collect();
-    for (e, fe) in es.iter().zip(library_fisher::<F64, _>(&c.cfg, c, &es, &device).expect("JVP")) {
+    let es: Vec<Vec<f64>> = (0..dim)
+        .map(|k| {
+            (0..p)
+                .map(|i| if i == p - dim + k { 1.0 } else { 0.0 })
+                .collect()
+        })
+        .collect();
+    for (e, fe) in es
+        .iter()
+        .zip(library_fisher::<F64, _>(&c.cfg, c, &es, &device).expect("JVP"))
+    {
         let two_e: Vec<f64> = e.iter().map(|x| 2.0 * x).collect();
         assert_vec_rel("F e_log_std", &fe, &two_e, 1e-14);
     }
@@ -171,7 +209,9 @@ impl PolicyFamily for NoJvpFamily {
     type Policy<B: Backend> = NoJvp<B>;
 
     fn init<B: Backend>(&self, device: &B::Device) -> NoJvp<B> {
-        NoJvp { inner: self.0.init(device) }
+        NoJvp {
+            inner: self.0.init(device),
+        }
     }
 }
 
@@ -189,8 +229,13 @@ impl<B: Backend> Policy<B> for DoubledJvp<B> {
 
     fn distribution_jvp(&self, obs: Tensor<B, 2>, tangent: &Self) -> Option<DistParams<B>> {
         Some(match self.inner.distribution_jvp(obs, &tangent.inner)? {
-            DistParams::Gaussian { mean, log_std } => DistParams::Gaussian { mean: mean.mul_scalar(2.0), log_std: log_std.mul_scalar(2.0) },
-            DistParams::Categorical { logits } => DistParams::Categorical { logits: logits.mul_scalar(2.0) },
+            DistParams::Gaussian { mean, log_std } => DistParams::Gaussian {
+                mean: mean.mul_scalar(2.0),
+                log_std: log_std.mul_scalar(2.0),
+            },
+            DistParams::Categorical { logits } => DistParams::Categorical {
+                logits: logits.mul_scalar(2.0),
+            },
         })
     }
 }
@@ -202,14 +247,24 @@ impl PolicyFamily for DoubledJvpFamily {
     type Policy<B: Backend> = DoubledJvp<B>;
 
     fn init<B: Backend>(&self, device: &B::Device) -> DoubledJvp<B> {
-        DoubledJvp { inner: self.0.init(device) }
+        DoubledJvp {
+            inner: self.0.init(device),
+        }
     }
 }
 
 fn objectives() -> [(&'static str, Objective); 2] {
     [
         ("trpo", Objective::Trpo),
-        ("apo", Objective::Apo(ApoParams { k: 7.0, omega1: 0.05, h_max: HMax::Fixed(0.05), gamma: 0.9 })),
+        (
+            "apo",
+            Objective::Apo(ApoParams {
+                k: 7.0,
+                omega1: 0.05,
+                h_max: HMax::Fixed(0.05),
+                gamma: 0.9,
+            }),
+        ),
     ]
 }
 
@@ -219,7 +274,14 @@ fn objectives() -> [(&'static str, Objective); 2] {
 #[test]
 fn trust_region_step_is_the_same_through_fisher_and_hvp() {
     let device = ndarray_f64();
-    let configs = [TrustRegionConfig::default(), TrustRegionConfig { max_kl: 0.2, cg_damping: 1e-3, ..Default::default() }];
+    let configs = [
+        TrustRegionConfig::default(),
+        TrustRegionConfig {
+            max_kl: 0.2,
+            cg_damping: 1e-3,
+            ..Default::default()
+        },
+    ];
     let mut tries = Vec::new();
     for c in cases() {
         for (oname, obj) in objectives() {
@@ -229,22 +291,51 @@ fn trust_region_step_is_the_same_through_fisher_and_hvp() {
                 batch.adv.iter_mut().for_each(|a| *a += 0.3);
                 let tb = batch.to_tensors::<F64>(&device);
                 let fisher = trust_region_step(&c.cfg, &obj, &c.theta, &tb, config);
-                let hvp = trust_region_step(&NoJvpFamily(c.cfg.clone()), &obj, &c.theta, &tb, config);
+                let hvp =
+                    trust_region_step(&NoJvpFamily(c.cfg.clone()), &obj, &c.theta, &tb, config);
                 assert_eq!(fisher.outcome, hvp.outcome, "{name}: outcome");
-                assert_eq!(fisher.cg_iterations, hvp.cg_iterations, "{name}: CG iterations");
-                let err = assert_vec_rel(&format!("{name}: full step"), &fisher.full_step, &hvp.full_step, 1e-8);
+                assert_eq!(
+                    fisher.cg_iterations, hvp.cg_iterations,
+                    "{name}: CG iterations"
+                );
+                let err = assert_vec_rel(
+                    &format!("{name}: full step"),
+                    &fisher.full_step,
+                    &hvp.full_step,
+                    1e-8,
+                );
                 assert_vec_rel(&format!("{name}: θ"), &fisher.theta, &hvp.theta, 1e-10);
-                assert_close(&format!("{name}: objective before"), fisher.objective_before, hvp.objective_before, 1e-14, 1.0);
-                assert_close(&format!("{name}: objective after"), fisher.objective_after, hvp.objective_after, 1e-9, 1.0);
+                assert_close(
+                    &format!("{name}: objective before"),
+                    fisher.objective_before,
+                    hvp.objective_before,
+                    1e-14,
+                    1.0,
+                );
+                assert_close(
+                    &format!("{name}: objective after"),
+                    fisher.objective_after,
+                    hvp.objective_after,
+                    1e-9,
+                    1.0,
+                );
                 assert_close(&format!("{name}: KL"), fisher.kl, hvp.kl, 1e-7, 1e-6);
-                assert_close(&format!("{name}: CG residual"), fisher.cg_residual_sq, hvp.cg_residual_sq, 1e-5, 1e-12);
+                assert_close(
+                    &format!("{name}: CG residual"),
+                    fisher.cg_residual_sq,
+                    hvp.cg_residual_sq,
+                    1e-5,
+                    1e-12,
+                );
                 eprintln!("  {err:9.2e}  {name}: {:?}", fisher.outcome);
                 tries.push(fisher.outcome);
             }
         }
     }
     assert!(
-        tries.iter().any(|t| matches!(t, apo_core::LineSearchOutcome::Accepted { r#try } if *r#try > 0)),
+        tries
+            .iter()
+            .any(|t| matches!(t, apo_core::LineSearchOutcome::Accepted { r#try } if *r#try > 0)),
         "no case backtracked: {tries:?}"
     );
 }
@@ -255,15 +346,33 @@ fn trust_region_step_is_the_same_through_fisher_and_hvp() {
 #[test]
 fn trust_region_step_uses_the_policys_jvp() {
     let device = ndarray_f64();
-    let config = TrustRegionConfig { cg_damping: 0.0, ..Default::default() };
+    let config = TrustRegionConfig {
+        cg_damping: 0.0,
+        ..Default::default()
+    };
     for c in cases() {
         let tb = c.batch.to_tensors::<F64>(&device);
         let plain = trust_region_step(&c.cfg, &Objective::Trpo, &c.theta, &tb, &config);
-        let doubled = trust_region_step(&DoubledJvpFamily(c.cfg.clone()), &Objective::Trpo, &c.theta, &tb, &config);
-        let expected: Vec<f64> = plain.full_step.iter().map(|s| s / std::f64::consts::SQRT_2).collect();
+        let doubled = trust_region_step(
+            &DoubledJvpFamily(c.cfg.clone()),
+            &Objective::Trpo,
+            &c.theta,
+            &tb,
+            &config,
+        );
+        let expected: Vec<f64> = plain
+            .full_step
+            .iter()
+            .map(|s| s / std::f64::consts::SQRT_2)
+            .collect();
         assert!(norm(&expected) > 1e-3, "{}: no step", c.name);
         assert_eq!(doubled.cg_iterations, plain.cg_iterations, "{}", c.name);
-        assert_vec_rel(&format!("{}: full step with the JVP doubled", c.name), &doubled.full_step, &expected, 1e-12);
+        assert_vec_rel(
+            &format!("{}: full step with the JVP doubled", c.name),
+            &doubled.full_step,
+            &expected,
+            1e-12,
+        );
     }
 }
 
@@ -276,27 +385,53 @@ fn policy_without_jvp_falls_back_to_the_hvp() {
     for c in cases() {
         let family = NoJvpFamily(c.cfg.clone());
         let tb = c.batch.to_tensors::<F64>(&device);
-        assert_eq!(fisher_vector_product(&family, &c.theta, tb.obs.clone(), &tb.dist_old, &c.vs[0]), None, "{}", c.name);
-        assert!(library_fisher::<F64, _>(&family, &c, &c.vs, &device).is_none(), "{}", c.name);
+        assert_eq!(
+            fisher_vector_product(&family, &c.theta, tb.obs.clone(), &tb.dist_old, &c.vs[0]),
+            None,
+            "{}",
+            c.name
+        );
+        assert!(
+            library_fisher::<F64, _>(&family, &c, &c.vs, &device).is_none(),
+            "{}",
+            c.name
+        );
 
         let report = trust_region_step(&family, &Objective::Trpo, &c.theta, &tb, &config);
         // the step by hand, from the library's gradient and HVP
         let tb1 = c.batch.to_tensors::<Autodiff<F64>>(&device);
-        let (_, g) = apo_core::hvp::gradient(&family.init::<Autodiff<F64>>(&device), &c.theta, &device, |p| {
-            Objective::Trpo.evaluate(&p.distribution(tb1.obs.clone()), &tb1).objective
-        });
+        let (_, g) = apo_core::hvp::gradient(
+            &family.init::<Autodiff<F64>>(&device),
+            &c.theta,
+            &device,
+            |p| {
+                Objective::Trpo
+                    .evaluate(&p.distribution(tb1.obs.clone()), &tb1)
+                    .objective
+            },
+        );
         let tb2 = c.batch.to_tensors::<Autodiff2<F64>>(&device);
         let template2 = family.init::<Autodiff2<F64>>(&device);
         let avp = |v: &[f64]| -> Vec<f64> {
             let hv = hessian_vector_product::<F64, _>(&template2, &c.theta, v, &device, |p| {
-                p.distribution(tb2.obs.clone()).kl_from(&tb2.dist_old).mean()
+                p.distribution(tb2.obs.clone())
+                    .kl_from(&tb2.dist_old)
+                    .mean()
             });
-            hv.iter().zip(v).map(|(h, vi)| h + config.cg_damping * vi).collect()
+            hv.iter()
+                .zip(v)
+                .map(|(h, vi)| h + config.cg_damping * vi)
+                .collect()
         };
         let cg = conjugate_gradient(&avp, &g, config.cg_iters, config.cg_residual_tol);
         let scale = (2.0 * config.max_kl / tr_dot(&cg.x, &avp(&cg.x))).sqrt();
         let step: Vec<f64> = cg.x.iter().map(|x| scale * x).collect();
-        assert_vec_rel(&format!("{}: full step", c.name), &report.full_step, &step, 1e-12);
+        assert_vec_rel(
+            &format!("{}: full step", c.name),
+            &report.full_step,
+            &step,
+            1e-12,
+        );
         assert_eq!(report.cg_iterations, cg.iterations, "{}", c.name);
         // and θ moved
         assert!(report.theta != c.theta, "{}: {:?}", c.name, report.outcome);

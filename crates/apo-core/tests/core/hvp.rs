@@ -25,7 +25,11 @@ fn fd_references_agree_and_are_float64() {
         let r2 = case.reference_fd_of_value();
         let err = rel_err(&r1, &r2);
         eprintln!("  {err:9.2e}  {}", case.name);
-        assert!(err < 1e-6, "{}: the two float64 references disagree by {err:.3e}", case.name);
+        assert!(
+            err < 1e-6,
+            "{}: the two float64 references disagree by {err:.3e}",
+            case.name
+        );
         worst = worst.max(err);
     }
     eprintln!("worst disagreement of the two float64 HVP references: {worst:.2e}");
@@ -37,11 +41,17 @@ fn hvp_matches_finite_differences_ndarray_f64() {
     let cases = hvp_cases();
     let refs: Vec<Vec<f64>> = cases.iter().map(|c| c.reference_fd_of_gradient()).collect();
     let errors = check_hvp::<F64>(&device, 1e-6, &cases, &refs);
-    print_errors("HVP relative error, NdArray<f64> vs FD of the f64 gradient", &errors);
+    print_errors(
+        "HVP relative error, NdArray<f64> vs FD of the f64 gradient",
+        &errors,
+    );
     // and against the autodiff-free reference
     let refs: Vec<Vec<f64>> = cases.iter().map(|c| c.reference_fd_of_value()).collect();
     let errors = check_hvp::<F64>(&device, 1e-6, &cases, &refs);
-    print_errors("HVP relative error, NdArray<f64> vs mixed FD of the f64 value", &errors);
+    print_errors(
+        "HVP relative error, NdArray<f64> vs mixed FD of the f64 value",
+        &errors,
+    );
 }
 
 #[test]
@@ -50,7 +60,10 @@ fn hvp_matches_finite_differences_wgpu() {
     let cases = hvp_cases();
     let refs: Vec<Vec<f64>> = cases.iter().map(|c| c.reference_fd_of_gradient()).collect();
     let errors = check_hvp::<Wgpu>(&device, 1e-4, &cases, &refs);
-    print_errors("HVP relative error, wgpu (f32) vs f64 FD of the gradient", &errors);
+    print_errors(
+        "HVP relative error, wgpu (f32) vs f64 FD of the gradient",
+        &errors,
+    );
 }
 
 /// The Fisher matrix at θ_old is symmetric positive semi-definite: `uᵀ(Fv) = vᵀ(Fu)` and
@@ -58,15 +71,42 @@ fn hvp_matches_finite_differences_wgpu() {
 #[test]
 fn fisher_products_are_symmetric_psd_and_linear() {
     let device = ndarray_f64();
-    for case in hvp_cases().into_iter().filter(|c| matches!(c.f, HvpFn::Kl) && c.name.contains("Fisher")) {
+    for case in hvp_cases()
+        .into_iter()
+        .filter(|c| matches!(c.f, HvpFn::Kl) && c.name.contains("Fisher"))
+    {
         let mut rng = Rng::new(7);
         let u = unit_vector(case.theta.len(), &mut rng);
         let fv = case.library_hvp::<F64>(&device);
-        let fu = HvpCase { v: u.clone(), ..case.clone() }.library_hvp::<F64>(&device);
-        assert_close(&format!("{}: symmetry", case.name), dot(&u, &fv), dot(&case.v, &fu), 1e-10, 1e-3);
-        assert!(dot(&case.v, &fv) > 0.0, "{}: vᵀFv = {}", case.name, dot(&case.v, &fv));
-        let w: Vec<f64> = case.v.iter().zip(&u).map(|(a, b)| 2.0 * a - 3.0 * b).collect();
-        let fw = HvpCase { v: w, ..case.clone() }.library_hvp::<F64>(&device);
+        let fu = HvpCase {
+            v: u.clone(),
+            ..case.clone()
+        }
+        .library_hvp::<F64>(&device);
+        assert_close(
+            &format!("{}: symmetry", case.name),
+            dot(&u, &fv),
+            dot(&case.v, &fu),
+            1e-10,
+            1e-3,
+        );
+        assert!(
+            dot(&case.v, &fv) > 0.0,
+            "{}: vᵀFv = {}",
+            case.name,
+            dot(&case.v, &fv)
+        );
+        let w: Vec<f64> = case
+            .v
+            .iter()
+            .zip(&u)
+            .map(|(a, b)| 2.0 * a - 3.0 * b)
+            .collect();
+        let fw = HvpCase {
+            v: w,
+            ..case.clone()
+        }
+        .library_hvp::<F64>(&device);
         let lin: Vec<f64> = fv.iter().zip(&fu).map(|(a, b)| 2.0 * a - 3.0 * b).collect();
         assert_vec_rel(&format!("{}: linearity", case.name), &fw, &lin, 1e-12);
     }

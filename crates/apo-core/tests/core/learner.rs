@@ -16,30 +16,52 @@ const OBS: usize = 3;
 
 /// Collects a 3-path, 40-step batch with the learner's current policy and critic
 /// (evaluated here by the plain-Rust reference), random rewards, and the buffer's GAE.
-fn collect(cfg: &MlpPolicyConfig, theta: &[f64], vtheta: &[f64], hidden: &[usize], rng: &mut Rng) -> Batch {
+fn collect(
+    cfg: &MlpPolicyConfig,
+    theta: &[f64],
+    vtheta: &[f64],
+    hidden: &[usize],
+    rng: &mut Rng,
+) -> Batch {
     let (width, dist_width) = match cfg.action {
         ActionKind::Continuous { dim } => (dim, 2 * dim),
         ActionKind::Discrete { n } => (n, n),
     };
-    let layout = BufferLayout { observation_dim: OBS, action_width: width, dist_width };
+    let layout = BufferLayout {
+        observation_dim: OBS,
+        action_width: width,
+        dist_width,
+    };
     let mut buf = RolloutBuffer::new(layout, 0.99, 0.97, 40);
-    let vsizes: Vec<usize> = std::iter::once(OBS).chain(hidden.iter().copied()).chain([1]).collect();
+    let vsizes: Vec<usize> = std::iter::once(OBS)
+        .chain(hidden.iter().copied())
+        .chain([1])
+        .collect();
     for t in 0..40 {
         let obs = rng.normals(OBS, 1.0);
         let dist = ref_policy(cfg, theta, &[obs.clone()]);
         let action = sample_actions(&dist, rng);
         let logp = dist.log_prob(&action)[0];
         let params: Vec<f64> = match &dist {
-            RefDist::Gaussian { mean, log_std } => mean[0].iter().chain(&log_std[0]).copied().collect(),
+            RefDist::Gaussian { mean, log_std } => {
+                mean[0].iter().chain(&log_std[0]).copied().collect()
+            }
             RefDist::Categorical { logits } => logits[0].clone(),
         };
         let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
         let value = ref_mlp(&vsizes, vtheta, &obs)[0];
-        buf.store(&f32s(&obs), &f32s(&action[0]), logp as f32, &f32s(&params), value as f32, rng.normal() as f32);
+        buf.store(
+            &f32s(&obs),
+            &f32s(&action[0]),
+            logp as f32,
+            &f32s(&params),
+            value as f32,
+            rng.normal() as f32,
+        );
         match t {
-            12 => buf.finish_path(0.0),                          // terminated
+            12 => buf.finish_path(0.0), // terminated
             25 => buf.finish_path(ref_mlp(&vsizes, vtheta, &rng.normals(OBS, 1.0))[0] as f32), // truncated
-            39 => buf.finish_path(0.3),                          // cut by the epoch
+            39 => buf.finish_path(0.3), // cut by the epoch
             _ => {}
         }
     }
@@ -48,7 +70,11 @@ fn collect(cfg: &MlpPolicyConfig, theta: &[f64], vtheta: &[f64], hidden: &[usize
 
 /// The host batch as a reference batch (f32 values widened to f64).
 fn to_ref(batch: &Batch, cfg: &MlpPolicyConfig) -> RefBatch {
-    let rows = |v: &[f32], w: usize| v.chunks(w).map(|r| r.iter().map(|&x| f64::from(x)).collect()).collect::<Vec<Vec<f64>>>();
+    let rows = |v: &[f32], w: usize| {
+        v.chunks(w)
+            .map(|r| r.iter().map(|&x| f64::from(x)).collect())
+            .collect::<Vec<Vec<f64>>>()
+    };
     let one = |v: &[f32]| v.iter().map(|&x| f64::from(x)).collect::<Vec<f64>>();
     let dist_old = match cfg.action {
         ActionKind::Continuous { dim } => {
@@ -58,7 +84,9 @@ fn to_ref(batch: &Batch, cfg: &MlpPolicyConfig) -> RefBatch {
                 log_std: d.iter().map(|r| r[dim..].to_vec()).collect(),
             }
         }
-        ActionKind::Discrete { n } => RefDist::Categorical { logits: rows(&batch.dist, n) },
+        ActionKind::Discrete { n } => RefDist::Categorical {
+            logits: rows(&batch.dist, n),
+        },
     };
     RefBatch {
         obs: rows(&batch.obs, OBS),
@@ -76,17 +104,34 @@ fn to_ref(batch: &Batch, cfg: &MlpPolicyConfig) -> RefBatch {
 fn one_update_per_algorithm_reports_consistent_finite_numbers() {
     let device = ndarray_f64();
     let hidden = [8, 8];
-    let vcfg = ValueConfig { observation_dim: OBS, hidden: hidden.to_vec() };
+    let vcfg = ValueConfig {
+        observation_dim: OBS,
+        hidden: hidden.to_vec(),
+    };
     for (pname, cfg) in [
-        ("gaussian", MlpPolicyConfig { hidden: hidden.to_vec(), ..MlpPolicyConfig::new(OBS, ActionKind::Continuous { dim: 2 }) }),
-        ("categorical", MlpPolicyConfig { hidden: hidden.to_vec(), ..MlpPolicyConfig::new(OBS, ActionKind::Discrete { n: 3 }) }),
+        (
+            "gaussian",
+            MlpPolicyConfig {
+                hidden: hidden.to_vec(),
+                ..MlpPolicyConfig::new(OBS, ActionKind::Continuous { dim: 2 })
+            },
+        ),
+        (
+            "categorical",
+            MlpPolicyConfig {
+                hidden: hidden.to_vec(),
+                ..MlpPolicyConfig::new(OBS, ActionKind::Discrete { n: 3 })
+            },
+        ),
     ] {
         for algo in Algorithm::ALL {
             let what = format!("{pname}/{algo}");
             let mut config = AlgoConfig::paper_defaults(algo);
             config.policy_update.iters = 10;
             config.value_update.iters = 10;
-            let mut learner = Learner::<F64, _>::new(cfg.clone(), cfg.action, &vcfg, config.clone(), &device, 7).expect("valid config");
+            let mut learner =
+                Learner::<F64, _>::new(cfg.clone(), cfg.action, &vcfg, config.clone(), &device, 7)
+                    .expect("valid config");
             let theta_j = learner.policy_params();
             let vtheta = learner.value_params();
             assert_eq!(theta_j.len(), policy_params(&cfg));
@@ -95,19 +140,51 @@ fn one_update_per_algorithm_reports_consistent_finite_numbers() {
 
             let report = learner.update(&batch, &mut StdRng::seed_from_u64(0));
             let theta = learner.policy_params();
-            for (name, v) in [("loss_pi", report.loss_pi), ("mean_surr", report.mean_surr), ("kl", report.kl), ("entropy", report.entropy), ("loss_v", report.loss_v)] {
+            for (name, v) in [
+                ("loss_pi", report.loss_pi),
+                ("mean_surr", report.mean_surr),
+                ("kl", report.kl),
+                ("entropy", report.entropy),
+                ("loss_v", report.loss_v),
+            ] {
                 assert!(v.is_finite(), "{what}: {name} = {v}");
             }
             // the numbers at θ_j, recomputed here
             let r = ref_objective(&cfg, &config.objective(), &theta_j, &rb);
-            assert_close(&format!("{what}: loss_pi"), report.loss_pi, -r.objective, 1e-9, 1.0);
-            assert_close(&format!("{what}: mean_surr"), report.mean_surr, r.mean_surr, 1e-9, 1.0);
+            assert_close(
+                &format!("{what}: loss_pi"),
+                report.loss_pi,
+                -r.objective,
+                1e-9,
+                1.0,
+            );
+            assert_close(
+                &format!("{what}: mean_surr"),
+                report.mean_surr,
+                r.mean_surr,
+                1e-9,
+                1.0,
+            );
             if algo != Algorithm::A2c {
                 // ratio 1 (up to the f32 storage of logp): mean_surr = mean(adv) ≈ 0 (normalized)
-                assert_close(&format!("{what}: mean_surr = mean(adv)"), report.mean_surr, mean(&rb.adv), 1e-6, 1.0);
+                assert_close(
+                    &format!("{what}: mean_surr = mean(adv)"),
+                    report.mean_surr,
+                    mean(&rb.adv),
+                    1e-6,
+                    1.0,
+                );
             }
-            assert_eq!(report.mean_variance.is_some(), matches!(algo, Algorithm::Apo | Algorithm::Papo), "{what}");
-            assert_eq!(report.variance_mean.is_some(), matches!(algo, Algorithm::Apo | Algorithm::Papo), "{what}");
+            assert_eq!(
+                report.mean_variance.is_some(),
+                matches!(algo, Algorithm::Apo | Algorithm::Papo),
+                "{what}"
+            );
+            assert_eq!(
+                report.variance_mean.is_some(),
+                matches!(algo, Algorithm::Apo | Algorithm::Papo),
+                "{what}"
+            );
             if let (Some(a), Some(e)) = (report.mean_variance, r.mean_variance) {
                 assert_close(&format!("{what}: mv"), a, e, 1e-9, 1.0);
             }
@@ -115,21 +192,41 @@ fn one_update_per_algorithm_reports_consistent_finite_numbers() {
                 assert_close(&format!("{what}: vm"), a, e, 1e-9, 1.0);
             }
             let entropy = mean(&ref_policy(&cfg, &theta_j, &rb.obs).entropy());
-            assert_close(&format!("{what}: entropy"), report.entropy, entropy, 1e-12, 1.0);
+            assert_close(
+                &format!("{what}: entropy"),
+                report.entropy,
+                entropy,
+                1e-12,
+                1.0,
+            );
             let vsizes = [OBS, 8, 8, 1];
-            let mse = mean(&rb.obs.iter().zip(&rb.ret).map(|(x, r)| (ref_mlp(&vsizes, &vtheta, x)[0] - r).powi(2)).collect::<Vec<_>>());
+            let mse = mean(
+                &rb.obs
+                    .iter()
+                    .zip(&rb.ret)
+                    .map(|(x, r)| (ref_mlp(&vsizes, &vtheta, x)[0] - r).powi(2))
+                    .collect::<Vec<_>>(),
+            );
             assert_close(&format!("{what}: loss_v"), report.loss_v, mse, 1e-9, 1.0);
             // KL(π_j ‖ π_{j+1}) of the stored (f32) distributions
             let kl = ref_mean_kl(&cfg, &theta, &rb);
             assert_close(&format!("{what}: kl"), report.kl, kl, 1e-6, 1e-6);
             // the value network was updated
-            assert_ne!(learner.value_params(), vtheta, "{what}: value network unchanged");
+            assert_ne!(
+                learner.value_params(),
+                vtheta,
+                "{what}: value network unchanged"
+            );
 
             match algo {
                 Algorithm::Apo | Algorithm::Trpo => {
                     let outcome = report.line_search.expect("trust-region outcome");
                     assert!(report.proximal.is_none());
-                    assert!(report.kl <= config.trust_region.max_kl * (1.0 + 1e-6), "{what}: KL {}", report.kl);
+                    assert!(
+                        report.kl <= config.trust_region.max_kl * (1.0 + 1e-6),
+                        "{what}: KL {}",
+                        report.kl
+                    );
                     eprintln!("{what}: {outcome:?}, KL {:.2e}", report.kl);
                 }
                 _ => {
@@ -147,13 +244,18 @@ fn one_update_per_algorithm_reports_consistent_finite_numbers() {
 #[test]
 fn config_validation_names_the_bad_field() {
     for algo in Algorithm::ALL {
-        AlgoConfig::paper_defaults(algo).validate().expect("the paper's defaults are valid");
+        AlgoConfig::paper_defaults(algo)
+            .validate()
+            .expect("the paper's defaults are valid");
     }
     let base = AlgoConfig::paper_defaults(Algorithm::Apo);
     let cases: Vec<(&str, Box<dyn Fn(&mut AlgoConfig)>)> = vec![
         ("gamma", Box::new(|c| c.gamma = 1.0)),
         ("k", Box::new(|c| c.k = -1.0)),
-        ("trust_region.max_kl", Box::new(|c| c.trust_region.max_kl = 0.0)),
+        (
+            "trust_region.max_kl",
+            Box::new(|c| c.trust_region.max_kl = 0.0),
+        ),
         ("clip", Box::new(|c| c.clip = 1.5)),
         ("lambda", Box::new(|c| c.lambda = 1.5)),
         ("omega1", Box::new(|c| c.omega1 = f64::NAN)),
@@ -166,10 +268,16 @@ fn config_validation_names_the_bad_field() {
         let err = c.validate().expect_err(field);
         assert_eq!(err.field, field);
         let msg = err.to_string();
-        assert!(msg.contains(&format!("`{field}`")), "message `{msg}` does not name `{field}`");
+        assert!(
+            msg.contains(&format!("`{field}`")),
+            "message `{msg}` does not name `{field}`"
+        );
         // and the learner refuses it
         let cfg = MlpPolicyConfig::new(OBS, ActionKind::Discrete { n: 2 });
-        let vcfg = ValueConfig { observation_dim: OBS, hidden: vec![4] };
+        let vcfg = ValueConfig {
+            observation_dim: OBS,
+            hidden: vec![4],
+        };
         let res = Learner::<F64, _>::new(cfg.clone(), cfg.action, &vcfg, c, &ndarray_f64(), 0);
         assert_eq!(res.err().map(|e| e.field), Some(field.to_string()));
     }

@@ -59,17 +59,39 @@ fn gradients_match_finite_differences_wgpu() {
 
 // ----- APO with k = 0 is TRPO, PAPO with k = 0 is PPO (values and gradients) ----------
 
-fn value_and_grad(cfg: &MlpPolicyConfig, obj: &Objective, theta: &[f64], batch: &RefBatch) -> (f64, Vec<f64>) {
+fn value_and_grad(
+    cfg: &MlpPolicyConfig,
+    obj: &Objective,
+    theta: &[f64],
+    batch: &RefBatch,
+) -> (f64, Vec<f64>) {
     library_gradient::<F64>(cfg, obj, theta, batch, &ndarray_f64())
 }
 
 #[test]
 fn apo_with_k_zero_equals_trpo_and_papo_equals_ppo() {
-    let apo0 = ApoParams { k: 0.0, omega1: 0.3, h_max: HMax::Fixed(0.7), gamma: 0.99 };
+    let apo0 = ApoParams {
+        k: 0.0,
+        omega1: 0.3,
+        h_max: HMax::Fixed(0.7),
+        gamma: 0.99,
+    };
     let pairs = [
         (Objective::Apo(apo0), Objective::Trpo),
-        (Objective::Apo(ApoParams { h_max: HMax::Estimated, ..apo0 }), Objective::Trpo),
-        (Objective::Papo { params: apo0, clip: 0.2 }, Objective::Ppo { clip: 0.2 }),
+        (
+            Objective::Apo(ApoParams {
+                h_max: HMax::Estimated,
+                ..apo0
+            }),
+            Objective::Trpo,
+        ),
+        (
+            Objective::Papo {
+                params: apo0,
+                clip: 0.2,
+            },
+            Objective::Ppo { clip: 0.2 },
+        ),
     ];
     for (pname, cfg) in policy_cases() {
         let (theta_old, theta, batch) = gradient_point(&cfg, 0.0, 5);
@@ -83,7 +105,13 @@ fn apo_with_k_zero_equals_trpo_and_papo_equals_ppo() {
                 assert_vec_rel(&format!("{what}: gradient"), &ga, &gb, 1e-13);
                 // and both against the independent reference (value) at θ_j: mean(adv)
                 if at_name == "θ_j" && matches!(b, Objective::Trpo) {
-                    assert_close(&format!("{what}: mean(adv)"), fb, mean(&batch.adv), 1e-12, 1.0);
+                    assert_close(
+                        &format!("{what}: mean(adv)"),
+                        fb,
+                        mean(&batch.adv),
+                        1e-12,
+                        1.0,
+                    );
                 }
             }
         }
@@ -100,14 +128,25 @@ fn apo_gradient_tends_to_trpo_as_k_goes_to_zero() {
         let (_, g_trpo) = value_and_grad(&cfg, &Objective::Trpo, &theta, &batch);
         let mut previous = f64::INFINITY;
         for k in [1e-1, 1e-3, 1e-5, 1e-7] {
-            let obj = Objective::Apo(ApoParams { k, omega1: 0.3, h_max: HMax::Fixed(0.7), gamma: 0.5 });
+            let obj = Objective::Apo(ApoParams {
+                k,
+                omega1: 0.3,
+                h_max: HMax::Fixed(0.7),
+                gamma: 0.5,
+            });
             let (_, g) = value_and_grad(&cfg, &obj, &theta, &batch);
             // the distance is k·‖∇mv + ∇vm‖ / ‖∇mean_surr‖: linear in k
             let err = rel_err(&g, &g_trpo);
-            assert!(err < previous / 50.0, "{pname}: k = {k}: distance to TRPO's gradient {err:.3e} did not shrink ~100×");
+            assert!(
+                err < previous / 50.0,
+                "{pname}: k = {k}: distance to TRPO's gradient {err:.3e} did not shrink ~100×"
+            );
             previous = err;
         }
-        assert!(previous < 1e-5, "{pname}: k = 1e-7 still {previous:.3e} away from TRPO's gradient");
+        assert!(
+            previous < 1e-5,
+            "{pname}: k = 1e-7 still {previous:.3e} away from TRPO's gradient"
+        );
     }
 }
 
@@ -121,30 +160,86 @@ fn at_theta_j_on_an_mlp_policy() {
     for (pname, cfg) in policy_cases() {
         for value_mean in [5.0, -5.0] {
             let (theta_old, _, batch) = gradient_point(&cfg, value_mean, 8);
-            let params = ApoParams { k: 2.0, omega1: 0.3, h_max: HMax::Fixed(0.7), gamma: 0.5 };
+            let params = ApoParams {
+                k: 2.0,
+                omega1: 0.3,
+                h_max: HMax::Fixed(0.7),
+                gamma: 0.5,
+            };
             let policy = common_policy(&cfg, &theta_old, &device);
             let tb = batch.to_tensors::<F64>(&device);
             let terms = Objective::Apo(params).evaluate(&policy.distribution(tb.obs.clone()), &tb);
             let n = batch.len() as f64;
             let ms = mean(&batch.adv);
-            let mv = 0.3 * batch.delta.iter().map(|d| (2.0 * d * 0.7).abs()).sum::<f64>() / n;
+            let mv = 0.3
+                * batch
+                    .delta
+                    .iter()
+                    .map(|d| (2.0 * d * 0.7).abs())
+                    .sum::<f64>()
+                / n;
             let mean_v = mean(&batch.value);
-            let min_j_sq = if ms + mean_v >= 0.0 { ms * ms + 2.0 * mean_v * ms } else { 0.0 };
-            assert_eq!(ms + mean_v >= 0.0, value_mean > 0.0, "switch side of the test data");
-            let spread = batch.adv.iter().zip(&batch.value).map(|(a, v)| a * a + 2.0 * a.abs() * v).sum::<f64>() / n;
+            let min_j_sq = if ms + mean_v >= 0.0 {
+                ms * ms + 2.0 * mean_v * ms
+            } else {
+                0.0
+            };
+            assert_eq!(
+                ms + mean_v >= 0.0,
+                value_mean > 0.0,
+                "switch side of the test data"
+            );
+            let spread = batch
+                .adv
+                .iter()
+                .zip(&batch.value)
+                .map(|(a, v)| a * a + 2.0 * a.abs() * v)
+                .sum::<f64>()
+                / n;
             let vm = 0.3 * (1.0 - 0.25) / 2.0 * spread - min_j_sq;
             let what = format!("{pname}, mean V {value_mean}");
-            assert_close(&format!("{what}: mean_surr"), scalar(terms.mean_surr), ms, 1e-12, 1.0);
-            assert_close(&format!("{what}: mv"), scalar(terms.mean_variance.unwrap()), mv, 1e-12, 1.0);
-            assert_close(&format!("{what}: vm"), scalar(terms.variance_mean.unwrap()), vm, 1e-12, 1.0);
-            assert_close(&format!("{what}: objective"), scalar(terms.objective), ms - 2.0 * (mv + vm), 1e-12, 1.0);
+            assert_close(
+                &format!("{what}: mean_surr"),
+                scalar(terms.mean_surr),
+                ms,
+                1e-12,
+                1.0,
+            );
+            assert_close(
+                &format!("{what}: mv"),
+                scalar(terms.mean_variance.unwrap()),
+                mv,
+                1e-12,
+                1.0,
+            );
+            assert_close(
+                &format!("{what}: vm"),
+                scalar(terms.variance_mean.unwrap()),
+                vm,
+                1e-12,
+                1.0,
+            );
+            assert_close(
+                &format!("{what}: objective"),
+                scalar(terms.objective),
+                ms - 2.0 * (mv + vm),
+                1e-12,
+                1.0,
+            );
 
             // ∇ mean(ratio · adv) at θ_j = mean(adv · ∇logp)
-            let (_, g) = library_gradient::<F64>(&cfg, &Objective::Trpo, &theta_old, &batch, &device);
+            let (_, g) =
+                library_gradient::<F64>(&cfg, &Objective::Trpo, &theta_old, &batch, &device);
             let g_ref = fd_gradient(
                 |th| {
                     let logp = ref_policy(&cfg, th, &batch.obs).log_prob(&batch.actions);
-                    mean(&logp.iter().zip(&batch.adv).map(|(l, a)| l * a).collect::<Vec<_>>())
+                    mean(
+                        &logp
+                            .iter()
+                            .zip(&batch.adv)
+                            .map(|(l, a)| l * a)
+                            .collect::<Vec<_>>(),
+                    )
                 },
                 &theta_old,
                 1e-6,

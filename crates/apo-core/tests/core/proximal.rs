@@ -27,18 +27,30 @@ fn setup(seed: u64) -> Setup {
     let mut rng = Rng::new(seed);
     let theta_j = random_theta(&cfg, &mut rng);
     let batch = sample_batch(&cfg, &theta_j, 64, 0.0, &mut rng);
-    Setup { cfg, theta_j, batch }
+    Setup {
+        cfg,
+        theta_j,
+        batch,
+    }
 }
 
 /// Runs `proximal_update` from θ_j; returns the new parameters and the report.
 fn run(s: &Setup, objective: &Objective, config: &ProximalConfig) -> (Vec<f64>, ProximalReport) {
     let device = ndarray_f64();
-    let policy: MlpPolicy<Ad> = apo_core::flat::unflatten(s.cfg.init::<Ad>(&device), t1::<Ad>(&s.theta_j, &device));
+    let policy: MlpPolicy<Ad> =
+        apo_core::flat::unflatten(s.cfg.init::<Ad>(&device), t1::<Ad>(&s.theta_j, &device));
     // Adam needs parameters that are leaves requiring gradients: rebuild them as such
     let policy = reparam(policy);
     let mut optim = AdamConfig::new().init::<Ad, MlpPolicy<Ad>>();
     let tb = s.batch.to_tensors::<Ad>(&device);
-    let (policy, report) = proximal_update(policy, &mut optim, objective, &tb, config, &mut StdRng::seed_from_u64(0));
+    let (policy, report) = proximal_update(
+        policy,
+        &mut optim,
+        objective,
+        &tb,
+        config,
+        &mut StdRng::seed_from_u64(0),
+    );
     (to_host(flatten(&policy)), report)
 }
 
@@ -48,7 +60,10 @@ fn reparam(policy: MlpPolicy<Ad>) -> MlpPolicy<Ad> {
     use burn::tensor::Tensor;
     struct Leaf;
     impl ModuleMapper<Ad> for Leaf {
-        fn map_float<const D: usize>(&mut self, param: Param<Tensor<Ad, D>>) -> Param<Tensor<Ad, D>> {
+        fn map_float<const D: usize>(
+            &mut self,
+            param: Param<Tensor<Ad, D>>,
+        ) -> Param<Tensor<Ad, D>> {
             param.map(|t| t.detach().require_grad())
         }
     }
@@ -57,7 +72,11 @@ fn reparam(policy: MlpPolicy<Ad>) -> MlpPolicy<Ad> {
 
 fn approx_kl(s: &Setup, theta: &[f64]) -> f64 {
     let logp = ref_policy(&s.cfg, theta, &s.batch.obs).log_prob(&s.batch.actions);
-    mean(&(0..s.batch.len()).map(|i| s.batch.logp_old[i] - logp[i]).collect::<Vec<_>>())
+    mean(
+        &(0..s.batch.len())
+            .map(|i| s.batch.logp_old[i] - logp[i])
+            .collect::<Vec<_>>(),
+    )
 }
 
 #[test]
@@ -65,17 +84,36 @@ fn ppo_update_increases_the_clipped_objective() {
     let s = setup(1);
     for (name, obj) in [
         ("ppo", Objective::Ppo { clip: 0.2 }),
-        ("papo", Objective::Papo { params: ApoParams { k: 7.0, omega1: 0.005, h_max: HMax::Fixed(0.005), gamma: 0.99 }, clip: 0.2 }),
+        (
+            "papo",
+            Objective::Papo {
+                params: ApoParams {
+                    k: 7.0,
+                    omega1: 0.005,
+                    h_max: HMax::Fixed(0.005),
+                    gamma: 0.99,
+                },
+                clip: 0.2,
+            },
+        ),
         ("a2c", Objective::A2c),
     ] {
-        let config = ProximalConfig { lr: 3e-3, iters: 20, target_kl: None, minibatch_size: None };
+        let config = ProximalConfig {
+            lr: 3e-3,
+            iters: 20,
+            target_kl: None,
+            minibatch_size: None,
+        };
         let (theta, report) = run(&s, &obj, &config);
         assert_eq!(report.steps, 20, "{name}: no early stop without a target");
         assert!(!report.stopped_early);
         let before = ref_objective(&s.cfg, &obj, &s.theta_j, &s.batch).objective;
         let after = ref_objective(&s.cfg, &obj, &theta, &s.batch).objective;
         eprintln!("{name}: objective {before:.6} → {after:.6}");
-        assert!(after > before + 1e-3, "{name}: objective {before} → {after}");
+        assert!(
+            after > before + 1e-3,
+            "{name}: objective {before} → {after}"
+        );
     }
 }
 
@@ -83,7 +121,12 @@ fn ppo_update_increases_the_clipped_objective() {
 fn tiny_target_kl_stops_early() {
     let s = setup(2);
     let obj = Objective::Ppo { clip: 0.2 };
-    let config = ProximalConfig { lr: 3e-3, iters: 80, target_kl: Some(1e-9), minibatch_size: None };
+    let config = ProximalConfig {
+        lr: 3e-3,
+        iters: 80,
+        target_kl: Some(1e-9),
+        minibatch_size: None,
+    };
     let (theta, report) = run(&s, &obj, &config);
     assert!(report.stopped_early, "{report:?}");
     // before the first step the policy is π_j (approx KL 0 ≤ target), so at least one
@@ -92,16 +135,32 @@ fn tiny_target_kl_stops_early() {
     assert!(report.steps >= 1 && report.steps <= 3, "{report:?}");
     assert!(report.approx_kl > 1e-9);
     // the reported approx KL is the one of the returned policy, computed here independently
-    assert_close("approx_kl", report.approx_kl, approx_kl(&s, &theta), 1e-8, 1e-10);
+    assert_close(
+        "approx_kl",
+        report.approx_kl,
+        approx_kl(&s, &theta),
+        1e-8,
+        1e-10,
+    );
 
     // a moderate target stops later, and the returned policy is the first one over it
-    let config = ProximalConfig { target_kl: Some(0.01), ..config };
+    let config = ProximalConfig {
+        target_kl: Some(0.01),
+        ..config
+    };
     let (theta, report) = run(&s, &obj, &config);
-    assert!(report.stopped_early && report.steps > 1 && report.steps < 80, "{report:?}");
+    assert!(
+        report.stopped_early && report.steps > 1 && report.steps < 80,
+        "{report:?}"
+    );
     assert!(approx_kl(&s, &theta) > 0.01);
 
     // a huge target never stops
-    let config = ProximalConfig { target_kl: Some(1e6), iters: 10, ..config };
+    let config = ProximalConfig {
+        target_kl: Some(1e6),
+        iters: 10,
+        ..config
+    };
     let (_, report) = run(&s, &obj, &config);
     assert_eq!((report.steps, report.stopped_early), (10, false));
 }
@@ -109,31 +168,65 @@ fn tiny_target_kl_stops_early() {
 #[test]
 fn minibatches_take_one_step_each() {
     let s = setup(3);
-    let config = ProximalConfig { lr: 1e-3, iters: 3, target_kl: None, minibatch_size: Some(16) };
+    let config = ProximalConfig {
+        lr: 1e-3,
+        iters: 3,
+        target_kl: None,
+        minibatch_size: Some(16),
+    };
     let (_, report) = run(&s, &Objective::Ppo { clip: 0.2 }, &config);
-    assert_eq!(report.steps, 3 * 4, "64 rows in minibatches of 16, 3 passes");
+    assert_eq!(
+        report.steps,
+        3 * 4,
+        "64 rows in minibatches of 16, 3 passes"
+    );
 }
 
 #[test]
 fn value_update_reduces_the_mse() {
     let device = ndarray_f64();
-    let vcfg = ValueConfig { observation_dim: 4, hidden: vec![8, 8] };
+    let vcfg = ValueConfig {
+        observation_dim: 4,
+        hidden: vec![8, 8],
+    };
     let mut rng = Rng::new(4);
     let pcfg = gaussian_cfg(4, &[4], 1);
     let theta = random_theta(&pcfg, &mut rng);
     let mut batch = sample_batch(&pcfg, &theta, 64, 0.0, &mut rng);
     // targets: a smooth function of the observation
-    batch.ret = batch.obs.iter().map(|x| x[0] - 0.5 * x[1] * x[2] + 0.3).collect();
+    batch.ret = batch
+        .obs
+        .iter()
+        .map(|x| x[0] - 0.5 * x[1] * x[2] + 0.3)
+        .collect();
     let value: ValueNet<Ad> = vcfg.init::<Ad>(&device);
     let mse = |theta: &[f64]| {
         let sizes = [4, 8, 8, 1];
-        mean(&batch.obs.iter().zip(&batch.ret).map(|(x, r)| (ref_mlp(&sizes, theta, x)[0] - r).powi(2)).collect::<Vec<_>>())
+        mean(
+            &batch
+                .obs
+                .iter()
+                .zip(&batch.ret)
+                .map(|(x, r)| (ref_mlp(&sizes, theta, x)[0] - r).powi(2))
+                .collect::<Vec<_>>(),
+        )
     };
     let before = mse(&to_host(flatten(&value)));
     let mut optim = AdamConfig::new().init::<Ad, ValueNet<Ad>>();
-    let config = ProximalConfig { lr: 1e-2, iters: 80, target_kl: None, minibatch_size: None };
+    let config = ProximalConfig {
+        lr: 1e-2,
+        iters: 80,
+        target_kl: None,
+        minibatch_size: None,
+    };
     let tb = batch.to_tensors::<Ad>(&device);
-    let (value, report) = value_update(value, &mut optim, &tb, &config, &mut StdRng::seed_from_u64(0));
+    let (value, report) = value_update(
+        value,
+        &mut optim,
+        &tb,
+        &config,
+        &mut StdRng::seed_from_u64(0),
+    );
     let after = mse(&to_host(flatten(&value)));
     eprintln!("value MSE {before:.4} → {after:.4}");
     assert_close("loss_before", report.loss_before, before, 1e-12, 1.0);

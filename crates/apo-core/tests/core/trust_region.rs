@@ -6,7 +6,9 @@ use crate::common;
 use apo_core::distribution::DistParams;
 use apo_core::objective::{ApoParams, HMax, Objective};
 use apo_core::policy::{Policy, PolicyFamily};
-use apo_core::trust_region::{conjugate_gradient, trust_region_step, LineSearchOutcome, TrustRegionConfig};
+use apo_core::trust_region::{
+    conjugate_gradient, trust_region_step, LineSearchOutcome, TrustRegionConfig,
+};
 use burn::module::{Module, Param};
 use burn::tensor::backend::Backend;
 use burn::tensor::Tensor;
@@ -23,9 +25,15 @@ fn matvec(a: &[Vec<f64>], x: &[f64]) -> Vec<f64> {
 /// Solves `A x = b` by Gaussian elimination with partial pivoting.
 fn solve(a: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
     let n = b.len();
-    let mut m: Vec<Vec<f64>> = a.iter().zip(b).map(|(row, bi)| row.iter().copied().chain([*bi]).collect()).collect();
+    let mut m: Vec<Vec<f64>> = a
+        .iter()
+        .zip(b)
+        .map(|(row, bi)| row.iter().copied().chain([*bi]).collect())
+        .collect();
     for col in 0..n {
-        let p = (col..n).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs())).unwrap();
+        let p = (col..n)
+            .max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))
+            .unwrap();
         m.swap(col, p);
         for r in col + 1..n {
             let f = m[r][col] / m[col][col];
@@ -49,7 +57,13 @@ fn solve(a: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
 fn random_spd(n: usize, rng: &mut Rng) -> Vec<Vec<f64>> {
     let m = rng.matrix(n, n, 1.0);
     (0..n)
-        .map(|i| (0..n).map(|j| (0..n).map(|k| m[k][i] * m[k][j]).sum::<f64>() + if i == j { 1.0 } else { 0.0 }).collect())
+        .map(|i| {
+            (0..n)
+                .map(|j| {
+                    (0..n).map(|k| m[k][i] * m[k][j]).sum::<f64>() + if i == j { 1.0 } else { 0.0 }
+                })
+                .collect()
+        })
         .collect()
 }
 
@@ -64,12 +78,28 @@ fn conjugate_gradient_solves_a_random_spd_system_to_its_tolerance() {
             let sol = conjugate_gradient(|v| matvec(&a, v), &b, 500, tol);
             let ax = matvec(&a, &sol.x);
             let res_sq: f64 = ax.iter().zip(&b).map(|(p, q)| (p - q).powi(2)).sum();
-            assert!(sol.residual_sq < tol, "trial {trial}: reported residual {} ≥ tol {tol}", sol.residual_sq);
+            assert!(
+                sol.residual_sq < tol,
+                "trial {trial}: reported residual {} ≥ tol {tol}",
+                sol.residual_sq
+            );
             // the true residual, not only CG's recursive estimate
-            assert!(res_sq < 10.0 * tol + 1e-24, "trial {trial}, tol {tol}: ‖Ax − b‖² = {res_sq:.3e}");
-            assert!(sol.iterations <= 200, "trial {trial}: {} iterations", sol.iterations);
+            assert!(
+                res_sq < 10.0 * tol + 1e-24,
+                "trial {trial}, tol {tol}: ‖Ax − b‖² = {res_sq:.3e}"
+            );
+            assert!(
+                sol.iterations <= 200,
+                "trial {trial}: {} iterations",
+                sol.iterations
+            );
             if tol <= 1e-12 {
-                assert_vec_rel(&format!("trial {trial}: x vs dense solve"), &sol.x, &solve(&a, &b), 1e-6);
+                assert_vec_rel(
+                    &format!("trial {trial}: x vs dense solve"),
+                    &sol.x,
+                    &solve(&a, &b),
+                    1e-6,
+                );
             }
         }
     }
@@ -95,7 +125,10 @@ fn conjugate_gradient_respects_its_iteration_cap_and_reports_the_residual() {
     let ax = matvec(&a, &sol.x);
     let res_sq: f64 = ax.iter().zip(&b).map(|(p, q)| (p - q).powi(2)).sum();
     assert_close("reported residual", sol.residual_sq, res_sq, 1e-8, 0.0);
-    assert!(res_sq > 1e-6, "3 iterations cannot solve a 20-dimensional system");
+    assert!(
+        res_sq > 1e-6,
+        "3 iterations cannot solve a 20-dimensional system"
+    );
 
     // b = 0: x = 0 without any product
     let sol = conjugate_gradient(|_| panic!("no product needed"), &[0.0; 20], 10, 1e-10);
@@ -135,7 +168,10 @@ impl PolicyFamily for LinearFamily {
     type Policy<B: Backend> = LinearGaussian<B>;
 
     fn init<B: Backend>(&self, device: &B::Device) -> LinearGaussian<B> {
-        LinearGaussian { w: Param::from_tensor(Tensor::zeros([self.obs, self.act], device)), log_std: self.log_std }
+        LinearGaussian {
+            w: Param::from_tensor(Tensor::zeros([self.obs, self.act], device)),
+            log_std: self.log_std,
+        }
     }
 }
 
@@ -143,12 +179,25 @@ impl PolicyFamily for LinearFamily {
 fn linear_dist(fam: &LinearFamily, w: &[f64], obs: &[Vec<f64>]) -> RefDist {
     let mean = obs
         .iter()
-        .map(|x| (0..fam.act).map(|i| (0..fam.obs).map(|a| x[a] * w[a * fam.act + i]).sum()).collect())
+        .map(|x| {
+            (0..fam.act)
+                .map(|i| (0..fam.obs).map(|a| x[a] * w[a * fam.act + i]).sum())
+                .collect()
+        })
         .collect();
-    RefDist::Gaussian { mean, log_std: vec![vec![fam.log_std; fam.act]; obs.len()] }
+    RefDist::Gaussian {
+        mean,
+        log_std: vec![vec![fam.log_std; fam.act]; obs.len()],
+    }
 }
 
-fn linear_batch(fam: &LinearFamily, w: &[f64], n: usize, value_mean: f64, rng: &mut Rng) -> RefBatch {
+fn linear_batch(
+    fam: &LinearFamily,
+    w: &[f64],
+    n: usize,
+    value_mean: f64,
+    rng: &mut Rng,
+) -> RefBatch {
     let obs = rng.matrix(n, fam.obs, 1.0);
     let dist_old = linear_dist(fam, w, &obs);
     let actions = sample_actions(&dist_old, rng);
@@ -185,7 +234,9 @@ fn linear_fisher(fam: &LinearFamily, b: &RefBatch) -> Vec<Vec<f64>> {
 
 /// `∇_W log π(a_n | x_n)` at `W_j`: `x_{n,a} (a_{n,i} − μ_{n,i}) / σ²`.
 fn linear_grad_logp(fam: &LinearFamily, b: &RefBatch, n: usize) -> Vec<f64> {
-    let RefDist::Gaussian { mean, .. } = &b.dist_old else { unreachable!() };
+    let RefDist::Gaussian { mean, .. } = &b.dist_old else {
+        unreachable!()
+    };
     let s2 = (2.0 * fam.log_std).exp();
     let mut g = vec![0.0; fam.obs * fam.act];
     for a in 0..fam.obs {
@@ -234,7 +285,10 @@ fn hand_gradient(fam: &LinearFamily, obj: &Objective, b: &RefBatch) -> Vec<f64> 
                 }),
             };
             let c = 1.0 + if on { 2.0 * p.k * (ms + mv_) } else { 0.0 };
-            d_ms.iter().zip(&d_mv).map(|(a, m)| c * a - p.k * m).collect()
+            d_ms.iter()
+                .zip(&d_mv)
+                .map(|(a, m)| c * a - p.k * m)
+                .collect()
         }
         _ => unreachable!(),
     }
@@ -242,15 +296,37 @@ fn hand_gradient(fam: &LinearFamily, obj: &Objective, b: &RefBatch) -> Vec<f64> 
 
 #[test]
 fn trust_region_step_equals_the_closed_form_natural_gradient_step() {
-    let fam = LinearFamily { obs: 3, act: 2, log_std: -0.3 };
+    let fam = LinearFamily {
+        obs: 3,
+        act: 2,
+        log_std: -0.3,
+    };
     let device = ndarray_f64();
-    let config = TrustRegionConfig { max_kl: 0.01, cg_iters: 50, cg_damping: 0.0, cg_residual_tol: 1e-24, ..Default::default() };
-    let apo = ApoParams { k: 2.0, omega1: 0.3, h_max: HMax::Fixed(0.7), gamma: 0.5 };
+    let config = TrustRegionConfig {
+        max_kl: 0.01,
+        cg_iters: 50,
+        cg_damping: 0.0,
+        cg_residual_tol: 1e-24,
+        ..Default::default()
+    };
+    let apo = ApoParams {
+        k: 2.0,
+        omega1: 0.3,
+        h_max: HMax::Fixed(0.7),
+        gamma: 0.5,
+    };
     let cases = [
         ("trpo", Objective::Trpo, 0.0),
         ("apo, switch on", Objective::Apo(apo), 3.0),
         ("apo, switch off", Objective::Apo(apo), -3.0),
-        ("apo, estimated |H|", Objective::Apo(ApoParams { h_max: HMax::Estimated, ..apo }), 3.0),
+        (
+            "apo, estimated |H|",
+            Objective::Apo(ApoParams {
+                h_max: HMax::Estimated,
+                ..apo
+            }),
+            3.0,
+        ),
     ];
     for (seed, (name, obj, value_mean)) in cases.into_iter().enumerate() {
         let mut rng = Rng::new(100 + seed as u64);
@@ -262,21 +338,49 @@ fn trust_region_step_equals_the_closed_form_natural_gradient_step() {
         let scale = (2.0 * config.max_kl / dot(&x, &matvec(&f, &x))).sqrt();
         let step: Vec<f64> = x.iter().map(|xi| scale * xi).collect();
 
-        let report = trust_region_step(&fam, &obj, &w_j, &batch.to_tensors::<F64>(&device), &config);
-        let err = assert_vec_rel(&format!("{name}: full step"), &report.full_step, &step, 1e-9);
-        eprintln!("{name}: full step relative error {err:.2e}, outcome {:?}", report.outcome);
-        assert!(report.cg_iterations <= 6 + 1, "{name}: CG on a 6-dim problem took {}", report.cg_iterations);
+        let report =
+            trust_region_step(&fam, &obj, &w_j, &batch.to_tensors::<F64>(&device), &config);
+        let err = assert_vec_rel(
+            &format!("{name}: full step"),
+            &report.full_step,
+            &step,
+            1e-9,
+        );
+        eprintln!(
+            "{name}: full step relative error {err:.2e}, outcome {:?}",
+            report.outcome
+        );
+        assert!(
+            report.cg_iterations <= 6 + 1,
+            "{name}: CG on a 6-dim problem took {}",
+            report.cg_iterations
+        );
 
         // KL is exactly ½ ΔᵀFΔ for this family: check the returned point's KL both ways
         let delta: Vec<f64> = report.theta.iter().zip(&w_j).map(|(a, b)| a - b).collect();
         let kl_quadratic = 0.5 * dot(&delta, &matvec(&f, &delta));
-        let kl_direct = mean(&linear_dist(&fam, &report.theta, &batch.obs).kl_from(&batch.dist_old));
-        assert_close(&format!("{name}: KL closed forms"), kl_direct, kl_quadratic, 1e-10, 1e-12);
-        assert_close(&format!("{name}: reported KL"), report.kl, kl_direct, 1e-10, 1e-12);
+        let kl_direct =
+            mean(&linear_dist(&fam, &report.theta, &batch.obs).kl_from(&batch.dist_old));
+        assert_close(
+            &format!("{name}: KL closed forms"),
+            kl_direct,
+            kl_quadratic,
+            1e-10,
+            1e-12,
+        );
+        assert_close(
+            &format!("{name}: reported KL"),
+            report.kl,
+            kl_direct,
+            1e-10,
+            1e-12,
+        );
         assert!(kl_direct <= config.max_kl, "{name}: KL {kl_direct} > δ");
         match report.outcome {
             // the full step sits on the boundary ½ΔᵀFΔ = δ, which rounding can put just outside
-            LineSearchOutcome::Accepted { r#try } => assert!(r#try <= 1, "{name}: accepted only at try {}", r#try),
+            LineSearchOutcome::Accepted { r#try } => {
+                assert!(r#try <= 1, "{name}: accepted only at try {}", r#try)
+            }
             other => panic!("{name}: {other:?}"),
         }
     }
@@ -309,12 +413,26 @@ fn check_line_search(
     let report = trust_region_step(cfg, obj, theta_j, &batch.to_tensors::<F64>(&device), config);
     let before = ref_objective(cfg, obj, theta_j, batch).objective;
     let scale = before.abs().max(1.0);
-    assert_close(&format!("{name}: objective_before"), report.objective_before, before, 1e-10, scale);
+    assert_close(
+        &format!("{name}: objective_before"),
+        report.objective_before,
+        before,
+        1e-10,
+        scale,
+    );
     let kl = ref_mean_kl(cfg, &report.theta, batch);
-    assert!(kl <= config.max_kl * (1.0 + 1e-12), "{name}: KL of the returned θ is {kl} > δ = {}", config.max_kl);
+    assert!(
+        kl <= config.max_kl * (1.0 + 1e-12),
+        "{name}: KL of the returned θ is {kl} > δ = {}",
+        config.max_kl
+    );
     let candidate = |i: usize| -> Vec<f64> {
         let frac = config.backtrack_coeff.powi(i as i32);
-        theta_j.iter().zip(&report.full_step).map(|(t, s)| t + frac * s).collect()
+        theta_j
+            .iter()
+            .zip(&report.full_step)
+            .map(|(t, s)| t + frac * s)
+            .collect()
     };
     // a try is acceptable when KL ≤ δ and the objective did not decrease (with a little
     // slack for the last bits, which may differ between the library and the reference)
@@ -324,11 +442,28 @@ fn check_line_search(
     };
     match report.outcome {
         LineSearchOutcome::Accepted { r#try } => {
-            assert_vec_rel(&format!("{name}: θ = θ_j + ξ^try Δ"), &report.theta, &candidate(r#try), 1e-13);
+            assert_vec_rel(
+                &format!("{name}: θ = θ_j + ξ^try Δ"),
+                &report.theta,
+                &candidate(r#try),
+                1e-13,
+            );
             let after = ref_objective(cfg, obj, &report.theta, batch).objective;
-            assert!(after >= before - 1e-12 * scale, "{name}: objective fell from {before} to {after}");
-            assert!(report.objective_after >= report.objective_before, "{name}: reported objective fell");
-            assert_close(&format!("{name}: objective_after"), report.objective_after, after, 1e-10, scale);
+            assert!(
+                after >= before - 1e-12 * scale,
+                "{name}: objective fell from {before} to {after}"
+            );
+            assert!(
+                report.objective_after >= report.objective_before,
+                "{name}: reported objective fell"
+            );
+            assert_close(
+                &format!("{name}: objective_after"),
+                report.objective_after,
+                after,
+                1e-10,
+                scale,
+            );
             // KL of nearby distributions is a difference of O(1) terms: ~1e-16 absolute noise
             assert_close(&format!("{name}: reported KL"), report.kl, kl, 1e-9, 1e-6);
             for i in 0..r#try {
@@ -344,11 +479,17 @@ fn check_line_search(
             }
         }
         LineSearchOutcome::Rejected | LineSearchOutcome::NoStep => {
-            assert_eq!(report.theta, theta_j, "{name}: θ changed although the search failed");
+            assert_eq!(
+                report.theta, theta_j,
+                "{name}: θ changed although the search failed"
+            );
             assert_eq!(report.objective_after, report.objective_before, "{name}");
             if report.outcome == LineSearchOutcome::Rejected {
                 for i in 0..config.backtrack_iters {
-                    assert!(!acceptable(&candidate(i), -1e-9), "{name}: try {i} was acceptable but the search failed");
+                    assert!(
+                        !acceptable(&candidate(i), -1e-9),
+                        "{name}: try {i} was acceptable but the search failed"
+                    );
                 }
                 outcomes.rejected += 1;
             }
@@ -363,16 +504,52 @@ fn check_line_search(
 #[test]
 fn line_search_never_breaks_the_kl_bound() {
     let configs = [
-        TrustRegionConfig { max_kl: 0.01, ..Default::default() },
-        TrustRegionConfig { max_kl: 0.2, cg_damping: 1e-3, ..Default::default() },
+        TrustRegionConfig {
+            max_kl: 0.01,
+            ..Default::default()
+        },
+        TrustRegionConfig {
+            max_kl: 0.2,
+            cg_damping: 1e-3,
+            ..Default::default()
+        },
     ];
     let objectives = [
         ("trpo", Objective::Trpo),
-        ("apo paper params", Objective::Apo(ApoParams { k: 7.0, omega1: 0.005, h_max: HMax::Fixed(0.005), gamma: 0.99 })),
-        ("apo k = 100", Objective::Apo(ApoParams { k: 100.0, omega1: 0.05, h_max: HMax::Fixed(0.5), gamma: 0.9 })),
-        ("apo k = 1000, estimated |H|", Objective::Apo(ApoParams { k: 1000.0, omega1: 0.01, h_max: HMax::Estimated, gamma: 0.95 })),
+        (
+            "apo paper params",
+            Objective::Apo(ApoParams {
+                k: 7.0,
+                omega1: 0.005,
+                h_max: HMax::Fixed(0.005),
+                gamma: 0.99,
+            }),
+        ),
+        (
+            "apo k = 100",
+            Objective::Apo(ApoParams {
+                k: 100.0,
+                omega1: 0.05,
+                h_max: HMax::Fixed(0.5),
+                gamma: 0.9,
+            }),
+        ),
+        (
+            "apo k = 1000, estimated |H|",
+            Objective::Apo(ApoParams {
+                k: 1000.0,
+                omega1: 0.01,
+                h_max: HMax::Estimated,
+                gamma: 0.95,
+            }),
+        ),
     ];
-    let mut outcomes = Outcomes { accepted_first: 0, backtracked: 0, rejected: 0, kl_refusals: 0 };
+    let mut outcomes = Outcomes {
+        accepted_first: 0,
+        backtracked: 0,
+        rejected: 0,
+        kl_refusals: 0,
+    };
     for (pname, cfg) in common::backend::policy_cases() {
         for seed in 0..3u64 {
             let mut rng = Rng::new(1000 + seed);
@@ -390,8 +567,14 @@ fn line_search_never_breaks_the_kl_bound() {
         "line search: {} accepted at try 0, {} after backtracking, {} rejected; {} tries refused for KL > δ",
         outcomes.accepted_first, outcomes.backtracked, outcomes.rejected, outcomes.kl_refusals
     );
-    assert!(outcomes.backtracked > 0, "no case exercised the backtracking");
-    assert!(outcomes.kl_refusals > 0, "no try exceeded the KL bound: the bound was not exercised");
+    assert!(
+        outcomes.backtracked > 0,
+        "no case exercised the backtracking"
+    );
+    assert!(
+        outcomes.kl_refusals > 0,
+        "no try exceeded the KL bound: the bound was not exercised"
+    );
 }
 
 /// APO with γ = 0.99 and large critic values: at θ_j the bias is 0 and the `min_J_sq`
@@ -401,23 +584,63 @@ fn line_search_never_breaks_the_kl_bound() {
 /// with 10 tries the search must give up and keep θ_j; with 100 it finds a tiny step.
 #[test]
 fn line_search_keeps_theta_when_no_try_is_acceptable() {
-    let apo = Objective::Apo(ApoParams { k: 7.0, omega1: 0.005, h_max: HMax::Fixed(0.005), gamma: 0.99 });
+    let apo = Objective::Apo(ApoParams {
+        k: 7.0,
+        omega1: 0.005,
+        h_max: HMax::Fixed(0.005),
+        gamma: 0.99,
+    });
     let cfg = gaussian_cfg(4, &[8, 8], 3);
     let mut rng = Rng::new(77);
     let theta_j = random_theta(&cfg, &mut rng);
     let mut batch = sample_batch(&cfg, &theta_j, 48, 10.0, &mut rng);
     batch.adv.iter_mut().for_each(|a| *a += 0.5);
     let r = ref_objective(&cfg, &apo, &theta_j, &batch);
-    assert!(r.switch_margin.unwrap() > 0.0 && r.min_j_sq.unwrap() > 1.0, "test data: switch on with a large min_J_sq");
+    assert!(
+        r.switch_margin.unwrap() > 0.0 && r.min_j_sq.unwrap() > 1.0,
+        "test data: switch on with a large min_J_sq"
+    );
 
-    let mut outcomes = Outcomes { accepted_first: 0, backtracked: 0, rejected: 0, kl_refusals: 0 };
-    let short = TrustRegionConfig { max_kl: 0.01, backtrack_iters: 10, ..Default::default() };
-    check_line_search("10 tries", &cfg, &apo, &theta_j, &batch, &short, &mut outcomes);
+    let mut outcomes = Outcomes {
+        accepted_first: 0,
+        backtracked: 0,
+        rejected: 0,
+        kl_refusals: 0,
+    };
+    let short = TrustRegionConfig {
+        max_kl: 0.01,
+        backtrack_iters: 10,
+        ..Default::default()
+    };
+    check_line_search(
+        "10 tries",
+        &cfg,
+        &apo,
+        &theta_j,
+        &batch,
+        &short,
+        &mut outcomes,
+    );
     assert_eq!(outcomes.rejected, 1, "the search should have been rejected");
 
-    let long = TrustRegionConfig { max_kl: 0.01, backtrack_iters: 100, ..Default::default() };
-    check_line_search("100 tries", &cfg, &apo, &theta_j, &batch, &long, &mut outcomes);
-    assert_eq!(outcomes.backtracked, 1, "with 100 tries a tiny step is accepted");
+    let long = TrustRegionConfig {
+        max_kl: 0.01,
+        backtrack_iters: 100,
+        ..Default::default()
+    };
+    check_line_search(
+        "100 tries",
+        &cfg,
+        &apo,
+        &theta_j,
+        &batch,
+        &long,
+        &mut outcomes,
+    );
+    assert_eq!(
+        outcomes.backtracked, 1,
+        "with 100 tries a tiny step is accepted"
+    );
 }
 
 /// Zero advantages and zero deltas: the gradient is 0, there is no step, θ_j is kept.
@@ -428,7 +651,13 @@ fn zero_gradient_gives_no_step() {
     let theta_j = random_theta(&cfg, &mut rng);
     let mut batch = sample_batch(&cfg, &theta_j, 16, 0.0, &mut rng);
     batch.adv.iter_mut().for_each(|a| *a = 0.0);
-    let report = trust_region_step(&cfg, &Objective::Trpo, &theta_j, &batch.to_tensors::<F64>(&ndarray_f64()), &TrustRegionConfig::default());
+    let report = trust_region_step(
+        &cfg,
+        &Objective::Trpo,
+        &theta_j,
+        &batch.to_tensors::<F64>(&ndarray_f64()),
+        &TrustRegionConfig::default(),
+    );
     assert_eq!(report.outcome, LineSearchOutcome::NoStep);
     assert_eq!(report.theta, theta_j);
     assert!(report.full_step.iter().all(|s| *s == 0.0));
@@ -437,5 +666,8 @@ fn zero_gradient_gives_no_step() {
 #[test]
 fn default_config_is_the_papers() {
     let c = TrustRegionConfig::default();
-    assert_eq!((c.max_kl, c.backtrack_coeff, c.backtrack_iters), (0.02, 0.8, 100));
+    assert_eq!(
+        (c.max_kl, c.backtrack_coeff, c.backtrack_iters),
+        (0.02, 0.8, 100)
+    );
 }
