@@ -8,8 +8,8 @@ use apo_core::hvp::hessian_vector_product;
 use apo_core::inference::{ActBuffers, HostPolicy};
 use apo_core::trust_region::trust_region_step;
 use apo_core::{
-    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, FisherOperator, MlpPolicyConfig,
-    Policy, PolicyFamily, RolloutBuffer, TensorBatch,
+    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, FisherOperator, Kernels, Learner,
+    MlpPolicyConfig, Policy, PolicyFamily, RolloutBuffer, TensorBatch, ValueConfig,
 };
 use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
@@ -28,10 +28,14 @@ pub struct UpdateTimings {
     pub apo_s: f64,
     /// One Hessian-vector product of the mean KL by double backward (the reference path).
     pub hvp_s: f64,
-    /// One Fisher-vector product `Jᵀ M J v / N` (what the trust-region step uses for MLP policies).
-    pub fvp_s: f64,
+    /// One Fisher-vector product `Jᵀ M J v / N` (what the trust-region step uses for MLP
+    /// policies) on Burn's graph and on the host kernels.
+    pub fvp_s: [f64; 2],
     /// Line-search tries of the last TRPO and APO steps.
     pub tries: (String, String),
+    /// One Adam step of the value fit (the paper's 80 per epoch, full batch) on Burn's graph
+    /// and on the host kernels.
+    pub value_step_s: (f64, f64),
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -68,13 +72,15 @@ pub fn synthetic_batch(
     buffer.take()
 }
 
-/// Times APO and TRPO trust-region steps and KL Hessian-vector products on backend `B`.
+/// Times APO and TRPO trust-region steps (Fisher-vector products on `kernels`), and on
+/// backend `B` and the host kernels: KL Hessian- and Fisher-vector products and value-fit steps.
 pub fn update<B: Backend>(
     device: &B::Device,
     n: usize,
     obs_dim: usize,
     act_dim: usize,
     repeats: usize,
+    kernels: Kernels,
 ) -> UpdateTimings {
     let action = ActionKind::Continuous { dim: act_dim };
     let family = MlpPolicyConfig::new(obs_dim, action);
@@ -103,6 +109,7 @@ pub fn update<B: Backend>(
                 &theta,
                 &tb,
                 &config.trust_region,
+                kernels,
             );
             if round > 0 {
                 times.push(start.elapsed().as_secs_f64());
@@ -128,23 +135,64 @@ pub fn update<B: Backend>(
         })
         .skip(1)
         .collect();
-    let fisher = FisherOperator::new(&family, &theta, tb.obs.clone(), &tb.dist_old);
-    let fvp_s = (0..=repeats)
-        .map(|_| {
-            let start = Instant::now();
-            std::hint::black_box(fisher.apply(&v));
-            start.elapsed().as_secs_f64()
-        })
-        .skip(1)
-        .collect();
+    let fvp_s = [Kernels::Backend, Kernels::Host].map(|kernels| {
+        let fisher = FisherOperator::new(&family, &theta, tb.obs.clone(), &tb.dist_old)
+            .with_kernels(kernels);
+        let times = (0..=repeats)
+            .map(|_| {
+                let start = Instant::now();
+                std::hint::black_box(fisher.apply(&v));
+                start.elapsed().as_secs_f64()
+            })
+            .skip(1)
+            .collect();
+        median(times)
+    });
+    let value_step_s = (
+        value_step::<B>(device, &batch, obs_dim, action, Kernels::Backend, repeats),
+        value_step::<B>(device, &batch, obs_dim, action, Kernels::Host, repeats),
+    );
     UpdateTimings {
+        value_step_s,
         params: theta.len(),
         trpo_s: median(trpo_s),
         apo_s: median(apo_s),
         hvp_s: median(hvp_s),
-        fvp_s: median(fvp_s),
+        fvp_s,
         tries,
     }
+}
+
+/// Seconds per Adam step of the value fit on `batch` with `kernels`: the median over `repeats`
+/// (after one warm-up) of a whole value update's time over its steps.
+fn value_step<B: Backend>(
+    device: &B::Device,
+    batch: &Batch,
+    obs_dim: usize,
+    action: ActionKind,
+    kernels: Kernels,
+    repeats: usize,
+) -> f64 {
+    let mut config = AlgoConfig::paper_defaults(Algorithm::Trpo);
+    // the policy step is not timed here: make it as short as it gets
+    config.trust_region.cg_iters = 1;
+    config.trust_region.backtrack_iters = 1;
+    let steps = config.value_update.iters.max(1) as f64;
+    let value = ValueConfig {
+        observation_dim: obs_dim,
+        hidden: vec![64, 64],
+    };
+    let family = MlpPolicyConfig::new(obs_dim, action);
+    let Ok(mut learner) = Learner::<B, _>::new(family, action, &value, config, device, 0) else {
+        return f64::NAN;
+    };
+    learner.set_kernels(kernels);
+    let mut rng = StdRng::seed_from_u64(1);
+    let times = (0..=repeats)
+        .map(|_| learner.update(batch, &mut rng).value_update_s / steps)
+        .skip(1)
+        .collect();
+    median(times)
 }
 
 /// Microseconds per host policy call for a batch of `batch` observations.

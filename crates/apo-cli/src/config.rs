@@ -31,6 +31,43 @@ impl fmt::Display for BackendKind {
     }
 }
 
+/// Where the Fisher-vector products and the value fit run (`kernels`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum KernelsKind {
+    /// The host kernels with the cpu backend, Burn's graph with wgpu.
+    #[default]
+    Auto,
+    /// apo-core's f32 host kernels (`apo_core::Kernels::Host`).
+    Host,
+    /// Burn's graph on the run's backend (`apo_core::Kernels::Backend`).
+    Backend,
+}
+
+impl KernelsKind {
+    /// The choice for a run on `backend`.
+    pub fn resolve(self, backend: BackendKind) -> apo_core::Kernels {
+        match (self, backend) {
+            (KernelsKind::Host, _) | (KernelsKind::Auto, BackendKind::Cpu) => {
+                apo_core::Kernels::Host
+            }
+            (KernelsKind::Backend, _) | (KernelsKind::Auto, BackendKind::Wgpu) => {
+                apo_core::Kernels::Backend
+            }
+        }
+    }
+}
+
+impl fmt::Display for KernelsKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            KernelsKind::Auto => "auto",
+            KernelsKind::Host => "host",
+            KernelsKind::Backend => "backend",
+        })
+    }
+}
+
 /// Everything a training run needs; written to `config.toml` in the run directory.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -49,6 +86,9 @@ pub struct RunConfig {
     pub normalize_obs: bool,
     /// Backend of the updates.
     pub backend: BackendKind,
+    /// Where the Fisher-vector products and the value fit run.
+    #[serde(default)]
+    pub kernels: KernelsKind,
     /// Write a checkpoint every this many epochs (and always at the end and on interrupt).
     pub checkpoint_every: usize,
     /// Also keep the checkpoint of every this many epochs as `checkpoints/epoch-<N>`
@@ -117,6 +157,7 @@ impl RunConfig {
             num_envs: 1,
             normalize_obs: false,
             backend: BackendKind::Cpu,
+            kernels: KernelsKind::Auto,
             checkpoint_every: 1,
             keep_checkpoint_every: 0,
             hidden: vec![64, 64],
@@ -310,6 +351,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("num_envs", "environments stepped together, the epoch's steps split between them; 1..=65536"),
     ("normalize_obs", "normalize observations with running statistics (saved in checkpoints); true/false"),
     ("backend", "backend of the updates: \"cpu\" (NdArray) or \"wgpu\""),
+    ("kernels", "where the Fisher-vector products and the value fit run: \"host\" (apo's f32 CPU kernels), \"backend\" (Burn's graph on `backend`) or \"auto\" (host with cpu, backend with wgpu)"),
     ("checkpoint_every", "write a checkpoint every this many epochs (and at the end and on interrupt); ≥ 1"),
     ("keep_checkpoint_every", "also keep every this many epochs' checkpoint as checkpoints/epoch-<N> (`apo eval --checkpoint N`); 0 = off"),
     ("hidden", "hidden layer sizes of the policy and value MLPs, tanh (paper: [64, 64]); 1..=64 layers of 1..=1048576"),

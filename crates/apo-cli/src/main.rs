@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context};
 use apo_cli::checkpoint::Which;
-use apo_cli::config::{BackendKind, RunConfig};
+use apo_cli::config::{BackendKind, KernelsKind, RunConfig};
 use apo_cli::progress::ProgressRow;
 use apo_cli::run_dir::{self, NewRunDir, RunLock};
 use apo_cli::trainer::{self, Observer, TrainEnd};
@@ -105,11 +105,15 @@ enum Command {
 #[derive(Subcommand)]
 enum BenchCommand {
     /// Time one APO and one TRPO trust-region update, a KL Hessian-vector product (double
-    /// backward) and a Fisher-vector product.
+    /// backward), a Fisher-vector product and a value-fit Adam step (the last two on Burn's
+    /// graph and on the host kernels).
     Update {
         /// Backend.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
         backend: BackendKind,
+        /// Where the trust-region updates' Fisher-vector products run.
+        #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
+        kernels: KernelsKind,
         /// Samples in the batch.
         #[arg(long, default_value_t = 30_000, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
         batch: u64,
@@ -144,6 +148,9 @@ enum BenchCommand {
         /// Backend of the updates.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
         backend: BackendKind,
+        /// Where the Fisher-vector products and the value fit run.
+        #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
+        kernels: KernelsKind,
     },
     /// Environment steps per second of one environment with random actions.
     Env {
@@ -335,6 +342,7 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
     match command {
         BenchCommand::Update {
             backend,
+            kernels,
             batch,
             obs,
             act,
@@ -356,6 +364,7 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
                     obs,
                     act,
                     repeats,
+                    kernels.resolve(backend),
                 ),
                 BackendKind::Wgpu => {
                     quiet_wgpu();
@@ -365,17 +374,22 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
                         obs,
                         act,
                         repeats,
+                        kernels.resolve(backend),
                     )
                 }
             };
             println!(
-                "backend={backend} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
+                "backend={backend} kernels={kernels} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
                 t.params
             );
             println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries.0);
             println!("apo_update_s={:.4} ({})", t.apo_s, t.tries.1);
             println!("hvp_s={:.5}", t.hvp_s);
-            println!("fvp_s={:.5}", t.fvp_s);
+            println!("fvp_s_burn={:.5}", t.fvp_s[0]);
+            println!("fvp_s_host={:.5}", t.fvp_s[1]);
+            let (burn_step, host_step) = t.value_step_s;
+            println!("value_step_s_burn={burn_step:.5}");
+            println!("value_step_s_host={host_step:.5}");
             println!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s);
         }
         BenchCommand::Epoch {
@@ -385,6 +399,7 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             epochs,
             num_envs,
             backend,
+            kernels,
         } => {
             let spec = apo_envs::registry::spec(&env)?;
             let config = RunConfig {
@@ -393,6 +408,7 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
                 epochs: epochs as usize,
                 num_envs,
                 backend,
+                kernels,
                 checkpoint_every: 1,
                 ..RunConfig::defaults(algo, &env)
             };

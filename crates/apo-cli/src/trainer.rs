@@ -349,6 +349,7 @@ pub fn train<B: Backend>(
         device,
         config.seed,
     )?;
+    learner.set_kernels(config.kernels.resolve(config.backend));
     let progress_path = run_dir.join(crate::run_dir::PROGRESS);
     let mut state = TrainState::new(config.normalize_obs.then(|| RunningMeanStd::new(obs_dim)));
     let mut rows = Vec::new();

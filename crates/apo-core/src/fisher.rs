@@ -40,6 +40,8 @@
 //! [`crate::hvp::hessian_vector_product`], which stays the reference and the fallback for
 //! policies without a JVP.
 
+use std::cell::RefCell;
+
 use burn::backend::Autodiff;
 use burn::tensor::activation::softmax;
 use burn::tensor::backend::Backend;
@@ -47,8 +49,10 @@ use burn::tensor::Tensor;
 
 use crate::distribution::DistParams;
 use crate::flat::{from_host, unflatten};
+use crate::host_net::HostNet;
 use crate::hvp::gradient;
-use crate::policy::{Policy, PolicyFamily};
+use crate::kernels::Kernels;
+use crate::policy::{HostForm, Policy, PolicyFamily};
 
 /// What `M_s` needs of π_j, per state.
 #[derive(Debug, Clone)]
@@ -144,6 +148,8 @@ pub struct FisherOperator<B: Backend, F: PolicyFamily> {
     obs_ad: Tensor<Autodiff<B>, 2>,
     /// `M_s` of each state.
     metric: Metric<B>,
+    /// The same operator on the host kernels, when chosen and the policy has a host form.
+    host: Option<RefCell<HostFisher>>,
 }
 
 impl<B: Backend, F: PolicyFamily> FisherOperator<B, F> {
@@ -159,6 +165,30 @@ impl<B: Backend, F: PolicyFamily> FisherOperator<B, F> {
             obs_ad: Tensor::from_inner(obs.clone()),
             obs,
             metric: Metric::new(dist_old),
+            host: None,
+        }
+    }
+
+    /// The operator with its products on `kernels`: with [`Kernels::Host`], on the host
+    /// kernels when the policy has a host form ([`Policy::host_form`]) of `dist_old`'s
+    /// family, else (and with [`Kernels::Backend`]) on Burn's graph.
+    pub fn with_kernels(mut self, kernels: Kernels) -> Self {
+        self.host = match kernels {
+            Kernels::Host => {
+                HostFisher::new(&self.policy, &self.obs, &self.metric).map(RefCell::new)
+            }
+            Kernels::Backend => None,
+        };
+        self
+    }
+
+    /// Where the products run: [`Kernels::Host`] only when it was asked for and the policy
+    /// has a host form of `dist_old`'s family.
+    pub fn kernels(&self) -> Kernels {
+        if self.host.is_some() {
+            Kernels::Host
+        } else {
+            Kernels::Backend
         }
     }
 
@@ -171,6 +201,9 @@ impl<B: Backend, F: PolicyFamily> FisherOperator<B, F> {
     /// # Panics
     /// If `v` does not have exactly as many elements as the policy has parameters.
     pub fn apply(&self, v: &[f64]) -> Option<Vec<f64>> {
+        if let Some(host) = &self.host {
+            return Some(host.borrow_mut().apply(v));
+        }
         let device = self.obs.device();
         let tangent = unflatten(self.policy.clone(), from_host::<B>(v, &device));
         let jv = self.policy.distribution_jvp(self.obs.clone(), &tangent)?;
@@ -187,6 +220,106 @@ impl<B: Backend, F: PolicyFamily> FisherOperator<B, F> {
                 .div_scalar(n)
         });
         families_match.then_some(fv)
+    }
+}
+
+/// `M_s` on the host, per state.
+#[derive(Debug, Clone)]
+enum HostMetric {
+    /// `1/σ²` of π_j, `[N, action_dim]` (the log-std block of `M` is `2·I`).
+    Gaussian { inv_var: Vec<f32> },
+    /// `p` of π_j, `[N, n]`.
+    Categorical { probs: Vec<f32> },
+}
+
+/// [`FisherOperator`] on the host kernels: the policy's network at θ_j as a [`HostNet`]
+/// whose forward pass over the batch is done once; each product is a tangent pass, `M`'s
+/// elementwise product and a reverse pass.
+#[derive(Debug)]
+struct HostFisher {
+    net: HostNet,
+    /// Observations, `[N, observation_dim]`.
+    obs: Vec<f32>,
+    metric: HostMetric,
+    /// The network's part of `v`, `[num_net_params]`.
+    tangent: Vec<f32>,
+}
+
+impl HostFisher {
+    /// `None` when the policy has no host form or it does not match `metric`'s family.
+    fn new<B: Backend, P: Policy<B>>(
+        policy: &P,
+        obs: &Tensor<B, 2>,
+        metric: &Metric<B>,
+    ) -> Option<Self> {
+        let HostForm { layers, log_std } = policy.host_form()?;
+        let mut net = HostNet::new(&layers)?;
+        let host = |t: &Tensor<B, 2>| -> Vec<f32> { t.clone().into_data().iter::<f32>().collect() };
+        let metric = match (metric, log_std) {
+            (Metric::Gaussian { inv_var }, Some(_)) => HostMetric::Gaussian {
+                inv_var: host(inv_var),
+            },
+            (Metric::Categorical { probs }, None) => HostMetric::Categorical { probs: host(probs) },
+            _ => return None,
+        };
+        let [n, width] = obs.dims();
+        if width != net.input() {
+            return None;
+        }
+        let obs = host(obs);
+        if obs.len() != n * width {
+            return None;
+        }
+        // θ_j is fixed: the parts keep this forward pass for every product
+        net.run(&obs, |w, part, _, x_rows| w.forward(part, x_rows));
+        Some(Self {
+            net,
+            obs,
+            metric,
+            tangent: Vec::new(),
+        })
+    }
+
+    /// `F v`, `v: [num_params]` (the network's parameters, then the log-stds) → `[num_params]`.
+    fn apply(&mut self, v: &[f64]) -> Vec<f64> {
+        let width = self.net.output();
+        let rows = self.obs.len() / self.net.input();
+        let inv_n = 1.0 / rows.max(1) as f32;
+        let (v_net, v_log_std) = v.split_at(self.net.num_params().min(v.len()));
+        self.tangent.clear();
+        self.tangent.extend(v_net.iter().map(|&x| x as f32));
+        let (tangent, metric) = (&self.tangent, &self.metric);
+        self.net.run(&self.obs, |w, part, rows, x_rows| {
+            w.jvp(part, x_rows, tangent);
+            let (_, u) = part.output_and_head();
+            let per_row = rows.start * width..rows.end * width;
+            // u = M J v / N, in place
+            match metric {
+                HostMetric::Gaussian { inv_var } => {
+                    for (t, w) in u.iter_mut().zip(&inv_var[per_row]) {
+                        *t *= w * inv_n;
+                    }
+                }
+                HostMetric::Categorical { probs } => {
+                    // (diag(p) − p pᵀ) t = p ⊙ (t − pᵀt)
+                    for (t, p) in u
+                        .chunks_exact_mut(width)
+                        .zip(probs[per_row].chunks_exact(width))
+                    {
+                        let p_t: f32 = t.iter().zip(p).map(|(t, p)| t * p).sum();
+                        for (t, p) in t.iter_mut().zip(p) {
+                            *t = p * (*t - p_t) * inv_n;
+                        }
+                    }
+                }
+            }
+            w.backward(part, x_rows);
+        });
+        self.net.sum_grads();
+        let mut fv: Vec<f64> = self.net.grads.iter().map(|&g| f64::from(g)).collect();
+        // the log-std block: (1/N) Σ_s 2 v = 2 v
+        fv.extend(v_log_std.iter().map(|&x| 2.0 * x));
+        fv
     }
 }
 

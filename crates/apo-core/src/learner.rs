@@ -16,11 +16,13 @@ use rand::Rng;
 use crate::buffer::Batch;
 use crate::config::{AlgoConfig, ConfigError};
 use crate::flat::{flatten, from_host, to_host, unflatten};
+use crate::kernels::Kernels;
 use crate::policy::{ActionKind, Policy, PolicyFamily};
 use crate::proximal::{proximal_update, value_update, ProximalReport};
 use crate::tensor_batch::TensorBatch;
 use crate::trust_region::{trust_region_step, LineSearchOutcome};
 use crate::value::{ValueConfig, ValueNet};
+use crate::value_fit::{host_value_update, ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 
 type Ad<B> = Autodiff<B>;
 
@@ -71,13 +73,17 @@ where
     value: ValueNet<Ad<B>>,
     policy_optim: PolicyAdam<B, F>,
     value_optim: ValueAdam<B>,
+    kernels: Kernels,
 }
 
 static INIT_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn adam() -> AdamConfig {
-    // PyTorch's defaults, as in the paper's implementation.
-    AdamConfig::new().with_epsilon(1e-8)
+    // PyTorch's defaults, as in the paper's implementation (shared with the host value fit).
+    AdamConfig::new()
+        .with_beta_1(ADAM_BETA_1)
+        .with_beta_2(ADAM_BETA_2)
+        .with_epsilon(ADAM_EPSILON)
 }
 
 impl<B: Backend, F: PolicyFamily> Learner<B, F>
@@ -117,7 +123,19 @@ where
             device: device.clone(),
             policy_optim: adam().init(),
             value_optim: adam().init(),
+            kernels: Kernels::default(),
         })
+    }
+
+    /// Where the Fisher-vector products and the value fit run from now on (default
+    /// [`Kernels::Backend`]). The networks and optimizer states do not depend on it.
+    pub fn set_kernels(&mut self, kernels: Kernels) {
+        self.kernels = kernels;
+    }
+
+    /// Where the Fisher-vector products and the value fit run.
+    pub fn kernels(&self) -> Kernels {
+        self.kernels
     }
 
     /// The hyperparameters.
@@ -204,6 +222,7 @@ where
                 &theta,
                 &tb,
                 &self.config.trust_region,
+                self.kernels,
             );
             let leaf = from_host::<Ad<B>>(&report.theta, &self.device);
             self.policy = unflatten(self.policy.clone(), leaf);
@@ -223,14 +242,34 @@ where
         };
         let policy_update_s = start.elapsed().as_secs_f64();
         let value_start = std::time::Instant::now();
-        let (value, value_report) = value_update(
-            self.value.clone(),
-            &mut self.value_optim,
-            &tb1,
-            &self.config.value_update,
-            rng,
-        );
-        self.value = value;
+        let host = match self.kernels {
+            Kernels::Host => host_value_update::<B>(
+                &self.value,
+                &self.value_optim,
+                batch,
+                &self.config.value_update,
+                rng,
+            ),
+            Kernels::Backend => None,
+        };
+        let value_report = match host {
+            Some((value, optim, report)) => {
+                self.value = value;
+                self.value_optim = optim;
+                report
+            }
+            None => {
+                let (value, report) = value_update(
+                    self.value.clone(),
+                    &mut self.value_optim,
+                    &tb1,
+                    &self.config.value_update,
+                    rng,
+                );
+                self.value = value;
+                report
+            }
+        };
         let value_update_s = value_start.elapsed().as_secs_f64();
 
         let after = self.policy_on::<B>(&self.device);

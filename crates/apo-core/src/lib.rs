@@ -11,6 +11,8 @@
 //!   and one backward pass (double-backward Hessian-vector products, [`hvp`], for policies
 //!   without a JVP);
 //! * [`proximal`] — Adam with KL early stopping, and the value update;
+//! * [`kernels`] — where the Fisher-vector products and the value fit run: Burn's graph, or
+//!   fused host kernels;
 //! * [`metrics`] — per-epoch statistics, the bound `J − k·Var` and its confidence;
 //! * [`learner`] — one object that updates a policy and a critic with any algorithm.
 
@@ -20,8 +22,10 @@ pub mod config;
 pub mod distribution;
 pub mod fisher;
 pub mod flat;
+mod host_net;
 pub mod hvp;
 pub mod inference;
+pub mod kernels;
 pub mod learner;
 pub mod metrics;
 pub mod mlp;
@@ -31,11 +35,13 @@ pub mod proximal;
 pub mod tensor_batch;
 pub mod trust_region;
 pub mod value;
+mod value_fit;
 
 pub use buffer::{Batch, BufferLayout, RolloutBuffer};
 pub use config::{AlgoConfig, Algorithm, ConfigError, HMaxMode};
 pub use distribution::DistParams;
 pub use fisher::FisherOperator;
+pub use kernels::Kernels;
 pub use learner::{Learner, UpdateReport};
 pub use metrics::EpisodeStats;
 pub use objective::{ApoParams, HMax, Objective, ObjectiveTerms};

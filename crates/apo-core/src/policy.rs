@@ -61,6 +61,22 @@ pub trait Policy<B: Backend>: Module<B> {
     fn distribution_jvp(&self, _obs: Tensor<B, 2>, _tangent: &Self) -> Option<DistParams<B>> {
         None
     }
+
+    /// The policy as a host MLP, for [`crate::Kernels::Host`]: `None` (the default) when it
+    /// is not one, and Burn's graph is used.
+    fn host_form(&self) -> Option<HostForm> {
+        None
+    }
+}
+
+/// A policy whose flat parameters are an MLP (the network that outputs the means or the
+/// logits, tanh hidden layers) followed by state-independent log-stds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HostForm {
+    /// Per layer, `(weight [input, output] row-major, bias [output])`.
+    pub layers: Vec<(Vec<f32>, Vec<f32>)>,
+    /// Number of log-std parameters after the network's (`None`: a categorical policy).
+    pub log_std: Option<usize>,
 }
 
 /// A description of a policy that can build the same architecture on any backend.
@@ -158,6 +174,13 @@ impl<B: Backend> Policy<B> for MlpPolicy<B> {
             // a tangent of the other family: not a direction in this policy's parameters
             _ => None,
         }
+    }
+
+    fn host_form(&self) -> Option<HostForm> {
+        Some(HostForm {
+            layers: self.net.host_layers(),
+            log_std: self.log_std.as_ref().map(|p| p.val().dims()[0]),
+        })
     }
 }
 

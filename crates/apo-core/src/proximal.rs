@@ -46,15 +46,24 @@ fn split<AB: AutodiffBackend>(
     size: Option<usize>,
     rng: &mut impl Rng,
 ) -> Vec<TensorBatch<AB>> {
-    let n = batch.len();
-    match size.filter(|&s| s > 0 && s < n) {
+    match minibatches(batch.len(), size, rng) {
         None => vec![batch.clone()],
-        Some(size) => {
-            let mut idx: Vec<usize> = (0..n).collect();
-            idx.shuffle(rng);
-            idx.chunks(size).map(|c| batch.select(c)).collect()
-        }
+        Some(idx) => idx
+            .chunks(size.unwrap_or(1))
+            .map(|c| batch.select(c))
+            .collect(),
     }
+}
+
+/// One pass's minibatches of a batch of `n` rows: `None` for the whole batch in order
+/// (`size` absent, 0 or ≥ `n`), else the rows `0..n` shuffled by `rng`, to be cut into chunks
+/// of `size`.
+pub(crate) fn minibatches(n: usize, size: Option<usize>, rng: &mut impl Rng) -> Option<Vec<usize>> {
+    size.filter(|&s| s > 0 && s < n).map(|_| {
+        let mut idx: Vec<usize> = (0..n).collect();
+        idx.shuffle(rng);
+        idx
+    })
 }
 
 /// Up to `config.iters` passes of Adam ascending `objective` on `batch`, stopping early

@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use crate::fisher::FisherOperator;
 use crate::flat::{from_host, to_host, unflatten};
 use crate::hvp::{gradient, hessian_vector_product, Autodiff2};
+use crate::kernels::Kernels;
 use crate::objective::Objective;
 use crate::policy::{Policy, PolicyFamily};
 use crate::tensor_batch::TensorBatch;
@@ -167,13 +168,15 @@ where
     (to_host(kl)[0], to_host(obj)[0])
 }
 
-/// One trust-region step from `theta` (θ_j, whose distributions are `batch.dist_old`).
+/// One trust-region step from `theta` (θ_j, whose distributions are `batch.dist_old`), with
+/// the Fisher-vector products on `kernels`.
 pub fn trust_region_step<B, F>(
     family: &F,
     objective: &Objective,
     theta: &[f64],
     batch: &TensorBatch<B>,
     config: &TrustRegionConfig,
+    kernels: Kernels,
 ) -> TrustRegionReport
 where
     B: Backend,
@@ -189,7 +192,8 @@ where
         });
 
     // θ_j is fixed during the whole solve: both operators are prepared once
-    let fisher = FisherOperator::new(family, theta, batch.obs.clone(), &batch.dist_old);
+    let fisher = FisherOperator::new(family, theta, batch.obs.clone(), &batch.dist_old)
+        .with_kernels(kernels);
     let batch2 = batch1.lift::<Autodiff2<B>>();
     let template2 = family.init::<Autodiff2<B>>(&device);
     let fvp = |v: &[f64]| -> Vec<f64> {

@@ -65,9 +65,122 @@ fn jvp_matches_finite_differences_ndarray_f32() {
 
 #[test]
 fn fisher_product_matches_explicit_fisher_ndarray_f32() {
-    let errors = check_fisher_vs_explicit::<F32>(&device(), 1e-4);
+    let errors = check_fisher_vs_explicit::<F32>(&device(), apo_core::Kernels::Backend, 1e-4);
     print_errors(
         "F v relative error, NdArray<f32> vs explicit Jᵀ M J / N (f64 FD Jacobian)",
         &errors,
     );
+}
+
+#[test]
+fn fisher_product_on_host_kernels_matches_explicit_fisher() {
+    let errors = check_fisher_vs_explicit::<F32>(&device(), apo_core::Kernels::Host, 1e-5);
+    print_errors(
+        "F v relative error, host kernels (f32) vs explicit Jᵀ M J / N (f64 FD Jacobian)",
+        &errors,
+    );
+}
+
+/// A random batch of `n` transitions (Gaussian policy, `obs_dim` observations, 2 actions);
+/// the rewards-to-go are a smooth function of the observation plus noise, so the critic
+/// has something to fit.
+fn random_batch(n: usize, obs_dim: usize, seed: u64) -> apo_core::Batch {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut draw = |len: usize, scale: f32| -> Vec<f32> {
+        (0..len).map(|_| rng.random_range(-scale..scale)).collect()
+    };
+    let obs = draw(n * obs_dim, 2.0);
+    let noise = draw(n, 0.1);
+    let ret = obs
+        .chunks(obs_dim)
+        .zip(&noise)
+        .map(|(o, e)| 3.0 * o[0].sin() - o[1] + e)
+        .collect();
+    apo_core::Batch {
+        len: n,
+        actions: draw(n * 2, 1.0),
+        logp: draw(n, 1.0).iter().map(|v| v - 2.0).collect(),
+        dist: draw(n * 4, 0.5),
+        value: draw(n, 1.0),
+        delta: draw(n, 1.0),
+        adv: draw(n, 1.0),
+        obs,
+        ret,
+    }
+}
+
+/// Two learners from one seed, one updated with `fits[i]` in update `i` and the other always
+/// through Burn; the largest difference of their critics' parameters after each update, and
+/// of their policies' (which must be equal: the value fit draws the same minibatches).
+fn value_fit_divergence(fits: &[apo_core::Kernels], minibatch: Option<usize>) -> Vec<f64> {
+    use apo_core::{AlgoConfig, Algorithm, Kernels, Learner, MlpPolicyConfig, ValueConfig};
+    use rand::SeedableRng;
+    let (obs_dim, hidden) = (5, vec![16, 16]);
+    let mut config = AlgoConfig::paper_defaults(Algorithm::Papo);
+    config.value_update.iters = 20;
+    config.value_update.minibatch_size = minibatch;
+    config.policy_update.iters = 3;
+    config.policy_update.minibatch_size = minibatch;
+    let action = apo_core::ActionKind::Continuous { dim: 2 };
+    let make = || {
+        Learner::<F32, _>::new(
+            MlpPolicyConfig {
+                observation_dim: obs_dim,
+                hidden: hidden.clone(),
+                action,
+                init_log_std: -0.5,
+            },
+            action,
+            &ValueConfig {
+                observation_dim: obs_dim,
+                hidden: hidden.clone(),
+            },
+            config.clone(),
+            &device(),
+            11,
+        )
+        .expect("valid config")
+    };
+    let (mut a, mut b) = (make(), make());
+    assert_eq!(a.value_params(), b.value_params());
+    let (mut rng_a, mut rng_b) = (
+        rand::rngs::StdRng::seed_from_u64(5),
+        rand::rngs::StdRng::seed_from_u64(5),
+    );
+    let mut out = Vec::new();
+    for (epoch, &fit) in fits.iter().enumerate() {
+        let batch = random_batch(256, obs_dim, epoch as u64);
+        a.set_kernels(fit);
+        b.set_kernels(Kernels::Backend);
+        let (ra, rb) = (a.update(&batch, &mut rng_a), b.update(&batch, &mut rng_b));
+        assert!((ra.loss_v - rb.loss_v).abs() <= 1e-4 * rb.loss_v.max(1.0));
+        let max_diff = |x: Vec<f64>, y: Vec<f64>| {
+            x.iter()
+                .zip(&y)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f64::max)
+        };
+        assert!(
+            max_diff(a.policy_params(), b.policy_params()) <= 1e-5,
+            "the policies differ: the value fits consumed the random stream differently"
+        );
+        out.push(max_diff(a.value_params(), b.value_params()));
+    }
+    out
+}
+
+#[test]
+fn host_value_fit_matches_burn_full_batch_and_minibatches() {
+    use apo_core::Kernels::{Backend, Host};
+    for minibatch in [None, Some(48)] {
+        // host then Burn: the second update starts from the Adam state the host wrote back
+        let diffs = value_fit_divergence(&[Host, Backend, Host], minibatch);
+        for d in &diffs {
+            assert!(
+                *d <= 1e-6,
+                "{minibatch:?}: host vs Burn critics differ by {diffs:?}"
+            );
+        }
+    }
 }

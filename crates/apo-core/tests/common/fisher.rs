@@ -11,6 +11,7 @@ use apo_core::distribution::DistParams;
 use apo_core::fisher::FisherOperator;
 use apo_core::flat::{from_host, unflatten};
 use apo_core::policy::{MlpPolicyConfig, Policy, PolicyFamily};
+use apo_core::Kernels;
 use burn::tensor::backend::Backend;
 use burn::tensor::Tensor;
 
@@ -54,16 +55,22 @@ pub fn cases() -> Vec<Case> {
     ]
 }
 
-/// The library's `F v` on backend `B` for each of `vs`, from one operator (`None` when the
-/// family's policy has no JVP).
+/// The library's `F v` on backend `B` (products on `kernels`) for each of `vs`, from one
+/// operator (`None` when the family's policy has no JVP).
 pub fn library_fisher<B: Backend, F: PolicyFamily>(
     family: &F,
     c: &Case,
     vs: &[Vec<f64>],
     device: &B::Device,
+    kernels: Kernels,
 ) -> Option<Vec<Vec<f64>>> {
     let tb = c.batch.to_tensors::<B>(device);
-    let op = FisherOperator::new(family, &c.theta, tb.obs, &tb.dist_old);
+    let op = FisherOperator::new(family, &c.theta, tb.obs, &tb.dist_old).with_kernels(kernels);
+    assert_eq!(
+        op.kernels(),
+        kernels,
+        "the operator did not take the kernels asked for"
+    );
     vs.iter().map(|v| op.apply(v)).collect()
 }
 
@@ -226,12 +233,16 @@ pub fn matvec(a: &[Vec<f64>], x: &[f64]) -> Vec<f64> {
 
 /// The library's `F v` on backend `B` ([`cases`], each of their `vs`) against the explicit
 /// [`reference_fisher`]. Returns `(case, relative error)`.
-pub fn check_fisher_vs_explicit<B: Backend>(device: &B::Device, tol: f64) -> Vec<(String, f64)> {
+pub fn check_fisher_vs_explicit<B: Backend>(
+    device: &B::Device,
+    kernels: Kernels,
+    tol: f64,
+) -> Vec<(String, f64)> {
     let mut errors = Vec::new();
     for c in cases() {
         let f = reference_fisher(&c);
-        let fvs =
-            library_fisher::<B, _>(&c.cfg, &c, &c.vs, device).expect("the MLP policy has a JVP");
+        let fvs = library_fisher::<B, _>(&c.cfg, &c, &c.vs, device, kernels)
+            .expect("the MLP policy has a JVP");
         for (i, (v, fv)) in c.vs.iter().zip(&fvs).enumerate() {
             let what = format!("{}, v{i}: F v vs Jᵀ M J v / N", c.name);
             let err = assert_vec_rel(&what, fv, &matvec(&f, v), tol);

@@ -338,8 +338,14 @@ fn trust_region_step_equals_the_closed_form_natural_gradient_step() {
         let scale = (2.0 * config.max_kl / dot(&x, &matvec(&f, &x))).sqrt();
         let step: Vec<f64> = x.iter().map(|xi| scale * xi).collect();
 
-        let report =
-            trust_region_step(&fam, &obj, &w_j, &batch.to_tensors::<F64>(&device), &config);
+        let report = trust_region_step(
+            &fam,
+            &obj,
+            &w_j,
+            &batch.to_tensors::<F64>(&device),
+            &config,
+            apo_core::Kernels::Backend,
+        );
         let err = assert_vec_rel(
             &format!("{name}: full step"),
             &report.full_step,
@@ -410,7 +416,14 @@ fn check_line_search(
     outcomes: &mut Outcomes,
 ) {
     let device = ndarray_f64();
-    let report = trust_region_step(cfg, obj, theta_j, &batch.to_tensors::<F64>(&device), config);
+    let report = trust_region_step(
+        cfg,
+        obj,
+        theta_j,
+        &batch.to_tensors::<F64>(&device),
+        config,
+        apo_core::Kernels::Backend,
+    );
     let before = ref_objective(cfg, obj, theta_j, batch).objective;
     let scale = before.abs().max(1.0);
     assert_close(
@@ -657,6 +670,7 @@ fn zero_gradient_gives_no_step() {
         &theta_j,
         &batch.to_tensors::<F64>(&ndarray_f64()),
         &TrustRegionConfig::default(),
+        apo_core::Kernels::Backend,
     );
     assert_eq!(report.outcome, LineSearchOutcome::NoStep);
     assert_eq!(report.theta, theta_j);

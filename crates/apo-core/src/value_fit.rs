@@ -1,0 +1,325 @@
+//! The critic's regression on the host ([`Kernels::Host`](crate::kernels::Kernels::Host)):
+//! the same loss, Adam and minibatches as [`crate::proximal::value_update`], with the
+//! network's passes on [`HostNet`] and Adam in one loop over the parameters.
+//!
+//! Both paths draw the same minibatches from the same random stream, and the value network
+//! and its Adam state stay Burn's (a module and an optimizer record, read before and written
+//! back after the fit), so checkpoints do not depend on the path and a run may change it on
+//! resume. Only the rounding differs (tests compare the two).
+
+use burn::backend::Autodiff;
+use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
+use burn::optim::adaptor::OptimizerAdaptor;
+use burn::optim::record::AdaptorRecord;
+use burn::optim::{Adam, AdamState, AdaptiveMomentumState, Optimizer};
+use burn::tensor::backend::Backend;
+use burn::tensor::{Tensor, TensorData};
+use rand::Rng;
+
+use crate::buffer::Batch;
+use crate::host_net::HostNet;
+use crate::proximal::{minibatches, ProximalConfig, ValueReport};
+use crate::value::ValueNet;
+
+type Ad<B> = Autodiff<B>;
+type ValueAdam<B> = OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>;
+type Record<B> = <ValueAdam<B> as Optimizer<ValueNet<Ad<B>>, Ad<B>>>::Record;
+
+/// Adam's β₁, β₂ and ε of every optimizer in apo (PyTorch's defaults, as in the paper's
+/// implementation).
+pub(crate) const ADAM_BETA_1: f32 = 0.9;
+/// See [`ADAM_BETA_1`].
+pub(crate) const ADAM_BETA_2: f32 = 0.999;
+/// See [`ADAM_BETA_1`].
+pub(crate) const ADAM_EPSILON: f32 = 1e-8;
+
+/// A [`HostNet`] with one output trained by Adam on the mean squared error.
+#[derive(Debug, Clone)]
+pub(crate) struct HostRegression {
+    net: HostNet,
+    /// Adam's first moment, `[num_params]`.
+    moment_1: Vec<f32>,
+    /// Adam's second moment, `[num_params]`.
+    moment_2: Vec<f32>,
+    /// Adam steps taken.
+    time: usize,
+    /// A minibatch's gathered rows, `[n, input]` and `[n]`.
+    gathered: (Vec<f32>, Vec<f32>),
+}
+
+impl HostRegression {
+    /// From per-layer `(weight [input, output] row-major, bias [output])` and the Adam state
+    /// `(moment_1, moment_2, steps)` in the same flat order (`None`: no step taken yet).
+    /// `None` if the shapes do not chain or the last layer has more than one output.
+    pub(crate) fn new(
+        layers: &[(Vec<f32>, Vec<f32>)],
+        adam: Option<(Vec<f32>, Vec<f32>, usize)>,
+    ) -> Option<Self> {
+        let net = HostNet::new(layers).filter(|net| net.output() == 1)?;
+        let n = net.num_params();
+        let (moment_1, moment_2, time) = adam.unwrap_or((vec![0.0; n], vec![0.0; n], 0));
+        (moment_1.len() == n && moment_2.len() == n).then_some(Self {
+            net,
+            moment_1,
+            moment_2,
+            time,
+            gathered: (Vec::new(), Vec::new()),
+        })
+    }
+
+    /// Mean squared error of the predictions on `x: [n, input]` against `y: [n]`.
+    pub(crate) fn loss(&mut self, x: &[f32], y: &[f32]) -> f64 {
+        self.net.run(x, |w, part, rows, x_rows| {
+            w.forward(part, x_rows);
+            part.sum = squared_error(part.output_and_head().0, &y[rows]);
+        });
+        self.net.parts().iter().map(|p| p.sum).sum::<f64>() / y.len().max(1) as f64
+    }
+
+    /// One Adam step with learning rate `lr` on the mean squared error of `x: [n, input]`
+    /// against `y: [n]`; returns the loss before the step.
+    pub(crate) fn step(&mut self, x: &[f32], y: &[f32], lr: f32) -> f64 {
+        let scale = 2.0 / y.len().max(1) as f32;
+        self.net.run(x, |w, part, rows, x_rows| {
+            w.forward(part, x_rows);
+            let y = &y[rows];
+            let (out, delta) = part.output_and_head();
+            let sum = squared_error(out, y);
+            delta.clear();
+            delta.extend(out.iter().zip(y).map(|(v, t)| scale * (v - t)));
+            part.sum = sum;
+            w.backward(part, x_rows);
+        });
+        self.net.sum_grads();
+        let loss = self.net.parts().iter().map(|p| p.sum).sum::<f64>() / y.len().max(1) as f64;
+        self.time += 1;
+        // Burn's Adam, operation for operation: θ −= lr · m·c / (√v + ε·√(1 − β₂ᵗ)),
+        // c = √(1 − β₂ᵗ) / (1 − β₁ᵗ)
+        let t = i32::try_from(self.time).unwrap_or(i32::MAX);
+        let correction_2 = (1.0 - ADAM_BETA_2.powi(t)).sqrt();
+        let factor = correction_2 / (1.0 - ADAM_BETA_1.powi(t));
+        let epsilon = ADAM_EPSILON * correction_2;
+        for (((p, g), m), v) in self
+            .net
+            .params
+            .iter_mut()
+            .zip(&self.net.grads)
+            .zip(&mut self.moment_1)
+            .zip(&mut self.moment_2)
+        {
+            *m = *m * ADAM_BETA_1 + g * (1.0 - ADAM_BETA_1);
+            *v = *v * ADAM_BETA_2 + g * g * (1.0 - ADAM_BETA_2);
+            *p -= (*m * factor / (v.sqrt() + epsilon)) * lr;
+        }
+        loss
+    }
+
+    /// [`HostRegression::step`] on the rows `rows` of `x: [N, input]`, `y: [N]`.
+    pub(crate) fn step_rows(&mut self, x: &[f32], y: &[f32], rows: &[usize], lr: f32) -> f64 {
+        let width = self.net.input();
+        let (mut gx, mut gy) = std::mem::take(&mut self.gathered);
+        gx.clear();
+        gy.clear();
+        for &r in rows {
+            gx.extend_from_slice(&x[r * width..(r + 1) * width]);
+            gy.push(y[r]);
+        }
+        let loss = self.step(&gx, &gy, lr);
+        self.gathered = (gx, gy);
+        loss
+    }
+}
+
+/// `Σ (out − y)²` in f64.
+fn squared_error(out: &[f32], y: &[f32]) -> f64 {
+    out.iter()
+        .zip(y)
+        .map(|(v, t)| {
+            let e = f64::from(v - t);
+            e * e
+        })
+        .sum()
+}
+
+/// Reads each parameter's Adam moments and step count out of an optimizer record, in
+/// visiting order.
+struct ReadMoments<B: Backend> {
+    record: Record<B>,
+    moment_1: Vec<f32>,
+    moment_2: Vec<f32>,
+    time: Option<usize>,
+}
+
+impl<B: Backend> ModuleVisitor<Ad<B>> for ReadMoments<B> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<Ad<B>, D>>) {
+        let n = param.lazy_shape().num_elements();
+        match self.record.remove(&param.id) {
+            Some(record) => {
+                let state: AdamState<B, D> = record.into_state::<D>();
+                let momentum = state.momentum;
+                self.time = Some(self.time.unwrap_or(0).max(momentum.time));
+                self.moment_1
+                    .extend(momentum.moment_1.into_data().iter::<f32>());
+                self.moment_2
+                    .extend(momentum.moment_2.into_data().iter::<f32>());
+            }
+            None => {
+                self.moment_1.extend(std::iter::repeat_n(0.0, n));
+                self.moment_2.extend(std::iter::repeat_n(0.0, n));
+            }
+        }
+    }
+}
+
+/// Writes host parameters back into the module (ids and autodiff settings kept) and
+/// builds the matching optimizer record.
+struct WriteBack<'a, B: Backend> {
+    fit: &'a HostRegression,
+    offset: usize,
+    record: Record<B>,
+}
+
+impl<B: Backend> WriteBack<'_, B> {
+    fn tensor<const D: usize, B2: Backend>(
+        values: &[f32],
+        dims: [usize; D],
+        device: &B2::Device,
+    ) -> Tensor<B2, D> {
+        Tensor::from_data(TensorData::new(values.to_vec(), dims), device)
+    }
+}
+
+impl<B: Backend> ModuleMapper<Ad<B>> for WriteBack<'_, B> {
+    fn map_float<const D: usize>(
+        &mut self,
+        param: Param<Tensor<Ad<B>, D>>,
+    ) -> Param<Tensor<Ad<B>, D>> {
+        let shape = param.lazy_shape();
+        let dims: [usize; D] = std::array::from_fn(|i| shape[i]);
+        let range = self.offset..self.offset + shape.num_elements();
+        self.offset = range.end;
+        let device = param.lazy_device();
+        if self.fit.time > 0 {
+            let momentum = AdaptiveMomentumState::new(
+                self.fit.time,
+                Self::tensor::<D, B>(&self.fit.moment_1[range.clone()], dims, &device),
+                Self::tensor::<D, B>(&self.fit.moment_2[range.clone()], dims, &device),
+            );
+            self.record.insert(
+                param.id,
+                AdaptorRecord::from_state(AdamState::new(momentum)),
+            );
+        }
+        let value = Self::tensor::<D, Ad<B>>(&self.fit.net.params[range], dims, &device);
+        let id = param.id;
+        param.transform_for_load(value, id)
+    }
+}
+
+/// [`crate::proximal::value_update`] on the host: `config.iters` passes of Adam descending
+/// `mean((V(s) − ret)²)` over `batch` (`obs: [n, observation_dim]`, `ret: [n]`), minibatches
+/// drawn from `rng` exactly as the Burn path draws them. Returns the updated network and
+/// optimizer, or `None` (nothing consumed from `rng`) when the network is not the
+/// built-in MLP shape the kernel handles.
+pub(crate) fn host_value_update<B: Backend>(
+    value: &ValueNet<Ad<B>>,
+    optim: &ValueAdam<B>,
+    batch: &Batch,
+    config: &ProximalConfig,
+    rng: &mut impl Rng,
+) -> Option<(ValueNet<Ad<B>>, ValueAdam<B>, ValueReport)> {
+    let mut read = ReadMoments::<B> {
+        record: optim.to_record(),
+        moment_1: Vec::new(),
+        moment_2: Vec::new(),
+        time: None,
+    };
+    value.visit(&mut read);
+    let adam = read.time.map(|t| (read.moment_1, read.moment_2, t));
+    let mut fit = HostRegression::new(&value.net.host_layers(), adam)?;
+    if fit.net.input() * batch.len != batch.obs.len() || batch.ret.len() != batch.len {
+        return None;
+    }
+    let (x, y) = (&batch.obs, &batch.ret);
+    let lr = config.lr as f32;
+    let loss_before = fit.loss(x, y);
+    let mut loss_after = loss_before;
+    for _ in 0..config.iters {
+        match minibatches(batch.len, config.minibatch_size, rng) {
+            None => loss_after = fit.step(x, y, lr),
+            Some(rows) => {
+                for part in rows.chunks(config.minibatch_size.unwrap_or(1)) {
+                    loss_after = fit.step_rows(x, y, part, lr);
+                }
+            }
+        }
+    }
+    let mut write = WriteBack::<B> {
+        fit: &fit,
+        offset: 0,
+        record: Record::<B>::default(),
+    };
+    let value = value.clone().map(&mut write);
+    let optim = optim.clone().load_record(write.record);
+    Some((
+        value,
+        optim,
+        ValueReport {
+            loss_before,
+            loss_after,
+        },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn problem(seed: u64) -> (Vec<(Vec<f32>, Vec<f32>)>, Vec<f32>, Vec<f32>) {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut draw =
+            |len: usize| -> Vec<f32> { (0..len).map(|_| rng.random_range(-0.8..0.8)).collect() };
+        let layers = vec![
+            (draw(4 * 8), draw(8)),
+            (draw(8 * 8), draw(8)),
+            (draw(8), draw(1)),
+        ];
+        let x = draw(40 * 4);
+        let y = x.chunks(4).map(|r| 2.0 * r[0] - r[2] * r[3]).collect();
+        (layers, x, y)
+    }
+
+    #[test]
+    fn adam_descends_and_minibatch_rows_equal_a_gathered_batch() {
+        let (layers, x, y) = problem(3);
+        let mut reg = HostRegression::new(&layers, None).expect("shapes chain");
+        let first = reg.loss(&x, &y);
+        for _ in 0..300 {
+            reg.step(&x, &y, 1e-2);
+        }
+        let last = reg.loss(&x, &y);
+        assert!(last < 0.2 * first, "{first} → {last}");
+        assert_eq!(reg.time, 300);
+
+        let rows = [3usize, 17, 0, 39, 8];
+        let mut a = HostRegression::new(&layers, None).expect("shapes chain");
+        let mut b = a.clone();
+        a.step_rows(&x, &y, &rows, 1e-2);
+        let gx: Vec<f32> = rows
+            .iter()
+            .flat_map(|&r| x[r * 4..r * 4 + 4].to_vec())
+            .collect();
+        let gy: Vec<f32> = rows.iter().map(|&r| y[r]).collect();
+        b.step(&gx, &gy, 1e-2);
+        assert_eq!(a.net.params, b.net.params);
+    }
+
+    #[test]
+    fn refuses_several_outputs_and_mismatched_moments() {
+        let (mut layers, _, _) = problem(1);
+        assert!(HostRegression::new(&layers, Some((vec![0.0; 3], vec![0.0; 3], 1))).is_none());
+        layers[2] = (vec![0.0; 16], vec![0.0; 2]);
+        assert!(HostRegression::new(&layers, None).is_none());
+    }
+}
