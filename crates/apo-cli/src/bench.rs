@@ -232,9 +232,9 @@ pub struct EpochSplit {
     pub steps_per_s: f64,
 }
 
-/// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards)
-/// and returns each epoch's time split.
-pub fn epoch(config: &crate::RunConfig) -> anyhow::Result<Vec<EpochSplit>> {
+/// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards),
+/// the environments stepped on `threads` threads, and returns each epoch's time split.
+pub fn epoch(config: &crate::RunConfig, threads: usize) -> anyhow::Result<Vec<EpochSplit>> {
     use std::sync::atomic::AtomicBool;
     struct Silent;
     impl crate::trainer::Observer for Silent {
@@ -252,6 +252,7 @@ pub fn epoch(config: &crate::RunConfig) -> anyhow::Result<Vec<EpochSplit>> {
             &dir,
             &Default::default(),
             false,
+            threads,
             &stop,
             &mut Silent,
         ),
@@ -260,6 +261,7 @@ pub fn epoch(config: &crate::RunConfig) -> anyhow::Result<Vec<EpochSplit>> {
             &dir,
             &Default::default(),
             false,
+            threads,
             &stop,
             &mut Silent,
         ),

@@ -151,15 +151,24 @@ enum BenchCommand {
         /// Where the Fisher-vector products and the value fit run.
         #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
         kernels: KernelsKind,
+        /// Threads that step the environments (0: the cores available).
+        #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+        threads: usize,
     },
     /// Environment steps per second of one environment with random actions.
     Env {
         /// Environment name.
         #[arg(long)]
         env: String,
-        /// Steps to time.
+        /// Steps to time (environment steps, summed over the vector).
         #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
         steps: u64,
+        /// Environments stepped together as a vector (1: one bare environment).
+        #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=65_536))]
+        num_envs: usize,
+        /// Threads that step the vector (0: the cores available).
+        #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+        threads: usize,
     },
     /// Microseconds per rollout policy call (host MLP, (64, 64)).
     Policy {
@@ -204,6 +213,10 @@ struct TrainArgs {
     /// Environments stepped together [config: num_envs; default 1].
     #[arg(long)]
     num_envs: Option<usize>,
+    /// Threads that step the environments (0: the cores available); results do not depend
+    /// on it, so it may change on --resume.
+    #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+    threads: usize,
     /// Write a checkpoint every N epochs [config: checkpoint_every; default 1].
     #[arg(long, value_name = "N")]
     checkpoint_every: Option<usize>,
@@ -400,6 +413,7 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             num_envs,
             backend,
             kernels,
+            threads,
         } => {
             let spec = apo_envs::registry::spec(&env)?;
             let config = RunConfig {
@@ -420,7 +434,7 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             if backend == BackendKind::Wgpu {
                 quiet_wgpu();
             }
-            let split = apo_cli::bench::epoch(&config)?;
+            let split = apo_cli::bench::epoch(&config, threads)?;
             println!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend}");
             println!("epoch  total_s  rollout_s  policy_s  value_s  other_s  steps_per_s");
             for e in &split {
@@ -449,10 +463,22 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
                 med(|e| e.steps_per_s)
             );
         }
-        BenchCommand::Env { env, steps } => {
-            let mut e = apo_envs::make(&env)?;
-            let rate = apo_envs::mujoco::steps_per_second(e.as_mut(), steps as usize, 0);
-            println!("env={env} steps={steps}");
+        BenchCommand::Env {
+            env,
+            steps,
+            num_envs,
+            threads,
+        } => {
+            let rate = if num_envs == 1 {
+                let mut e = apo_envs::make(&env)?;
+                apo_envs::mujoco::steps_per_second(e.as_mut(), steps as usize, 0)
+            } else {
+                let mut envs =
+                    apo_envs::vector::VecEnv::make(&env, num_envs)?.with_threads(threads)?;
+                println!("threads={}", envs.threads());
+                apo_envs::mujoco::vector_steps_per_second(&mut envs, steps as usize, 0)
+            };
+            println!("env={env} steps={steps} num_envs={num_envs}");
             println!("steps_per_sec={rate:.1}");
         }
         BenchCommand::Policy {
@@ -733,7 +759,7 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
             (config, dir, false, lock)
         }
     };
-    let result = run_training(&config, &run_dir, resume, args.quiet);
+    let result = run_training(&config, &run_dir, resume, args.threads, args.quiet);
     if result.is_err() && !run_dir.join(run_dir::PROGRESS).exists() {
         // a new run that failed before its first epoch leaves nothing behind
         if let Some(prepared) = fresh {
@@ -747,6 +773,7 @@ fn run_training(
     config: &RunConfig,
     run_dir: &Path,
     resume: bool,
+    threads: usize,
     quiet: bool,
 ) -> anyhow::Result<ExitCode> {
     init_logging(run_dir)?;
@@ -758,6 +785,7 @@ fn run_training(
             run_dir,
             &Default::default(),
             resume,
+            threads,
             &signals.stop,
             &mut bar,
         ),
@@ -768,6 +796,7 @@ fn run_training(
                 run_dir,
                 &Default::default(),
                 resume,
+                threads,
                 &signals.stop,
                 &mut bar,
             )

@@ -135,9 +135,14 @@ pub struct Collector {
 }
 
 impl Collector {
-    /// A collector for `config` (its environments are made here).
-    pub fn new(config: &RunConfig, normalizer: Option<RunningMeanStd>) -> anyhow::Result<Self> {
-        let envs = VecEnv::make(&config.env, config.num_envs)?;
+    /// A collector for `config` (its environments are made here), stepping them on `threads`
+    /// worker threads (0: the cores available; the results do not depend on it).
+    pub fn new(
+        config: &RunConfig,
+        normalizer: Option<RunningMeanStd>,
+        threads: usize,
+    ) -> anyhow::Result<Self> {
+        let envs = VecEnv::make(&config.env, config.num_envs)?.with_threads(threads)?;
         let n = config.num_envs;
         let obs_dim = envs.obs_dim();
         let action = action_kind(envs.action_space());
@@ -322,7 +327,9 @@ pub fn shapes(config: &RunConfig, observation_dim: usize, action: ActionKind) ->
     }
 }
 
-/// Trains (or, with `resume`, continues) the run in `run_dir` on backend `B`.
+/// Trains (or, with `resume`, continues) the run in `run_dir` on backend `B`, the
+/// environments stepped on `threads` threads (0: the cores available; results do not depend
+/// on it).
 ///
 /// Resuming checks that the checkpoint and `progress.csv` agree (rows of every completed epoch,
 /// with matching step counts) and refuses with the reason when they don't. After every update
@@ -333,11 +340,12 @@ pub fn train<B: Backend>(
     run_dir: &Path,
     device: &B::Device,
     resume: bool,
+    threads: usize,
     stop: &AtomicBool,
     observer: &mut dyn Observer,
 ) -> anyhow::Result<TrainEnd> {
     let start = Instant::now();
-    let mut collector = Collector::new(config, None)?;
+    let mut collector = Collector::new(config, None, threads)?;
     let (obs_dim, action) = (collector.observation_dim(), collector.action());
     let shapes = shapes(config, obs_dim, action);
     let (policy_cfg, value_cfg) = networks(config, obs_dim, action);

@@ -36,6 +36,9 @@ pub enum EnvError {
     /// A vector of environments was built from no environments.
     #[error("a vector of environments needs at least one environment")]
     EmptyVector,
+    /// The worker threads of a vector of environments could not be started.
+    #[error("cannot start the environment worker threads: {0}")]
+    Threads(String),
     /// An environment of a vector has other spaces than the first one.
     #[error("environment {index} of the vector has spaces {found:?}, expected those of environment 0: {expected:?}")]
     MismatchedSpaces {

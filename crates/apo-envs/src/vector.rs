@@ -21,6 +21,14 @@
 //! next state is `final_obs(i)` when done, else `obs[i]`. No step allocates: the final
 //! observations live in a buffer made once, and rows of environments that did not finish are
 //! left as they were (stale).
+//!
+//! # Threads
+//!
+//! [`VecEnv::with_threads`] steps the environments on a pool of worker threads: the `n`
+//! environments are cut into at most `threads` consecutive slices of `⌈n / threads⌉`, each
+//! stepped in place by one worker (rows of the caller's buffers are written directly, no copy,
+//! no allocation, no lock per environment step). Every environment owns its RNG and state, so
+//! the outcome is bit-identical whatever the number of threads.
 
 use crate::env::{Action, Env, StepInfo, Transition};
 use crate::error::EnvError;
@@ -68,6 +76,8 @@ pub struct VecEnv {
     act_dim: usize,
     final_obs: Vec<f32>,
     finished: Vec<bool>,
+    /// The worker threads, when stepping in parallel.
+    pool: Option<rayon::ThreadPool>,
 }
 
 impl std::fmt::Debug for VecEnv {
@@ -76,6 +86,7 @@ impl std::fmt::Debug for VecEnv {
             .field("num_envs", &self.envs.len())
             .field("observation_space", &self.observation_space)
             .field("action_space", &self.action_space)
+            .field("threads", &self.threads())
             .finish_non_exhaustive()
     }
 }
@@ -125,7 +136,37 @@ impl VecEnv {
             act_dim,
             final_obs: vec![0.0; n * obs_dim],
             finished: vec![false; n],
+            pool: None,
         })
+    }
+
+    /// Steps on `threads` worker threads (at most one per environment; 0 = the cores
+    /// available; 1 = on the caller's thread). Results do not depend on it.
+    ///
+    /// # Errors
+    /// [`EnvError::Threads`] if the operating system refuses to start the threads.
+    pub fn with_threads(mut self, threads: usize) -> Result<Self, EnvError> {
+        let threads = match threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            t => t,
+        }
+        .min(self.envs.len());
+        self.pool = if threads > 1 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|i| format!("apo-env-{i}"))
+                .build()
+                .map_err(|e| EnvError::Threads(e.to_string()))?;
+            Some(pool)
+        } else {
+            None
+        };
+        Ok(self)
+    }
+
+    /// The number of threads that step the environments.
+    pub fn threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
     }
 
     /// `num_envs` copies of the registered environment `name`, built by [`registry::make`].
@@ -194,18 +235,14 @@ impl VecEnv {
         self.check_len("actions", actions.len(), self.act_dim);
         self.check_len("obs", obs.len(), self.obs_dim);
         self.check_len("out", out.len(), 1);
-        let (obs_dim, act_dim) = (self.obs_dim, self.act_dim);
-        let rows = self
-            .envs
-            .iter_mut()
-            .zip(actions.chunks_exact(act_dim))
-            .zip(obs.chunks_exact_mut(obs_dim))
-            .zip(self.final_obs.chunks_exact_mut(obs_dim))
-            .zip(out.iter_mut().zip(&mut self.finished));
-        for ((((env, action), obs_row), final_row), (step, finished)) in rows {
-            let action = match self.action_space {
+        let (obs_dim, act_dim, space) = (self.obs_dim, self.act_dim, &self.action_space);
+        let step_one = |((((env, action), obs_row), final_row), (step, finished)): (
+            (((&mut Box<dyn Env>, &[f32]), &mut [f32]), &mut [f32]),
+            (&mut VecStep, &mut bool),
+        )| {
+            let action = match space {
                 Space::Box { .. } => Action::Continuous(action),
-                Space::Discrete { n } => Action::Discrete(discrete_index(action[0], n)),
+                Space::Discrete { n } => Action::Discrete(discrete_index(action[0], *n)),
             };
             let transition = env.step(action, obs_row);
             *step = transition.into();
@@ -213,6 +250,32 @@ impl VecEnv {
             if transition.done() {
                 final_row.copy_from_slice(obs_row);
                 env.reset(None, obs_row);
+            }
+        };
+        match &self.pool {
+            None => self
+                .envs
+                .iter_mut()
+                .zip(actions.chunks_exact(act_dim))
+                .zip(obs.chunks_exact_mut(obs_dim))
+                .zip(self.final_obs.chunks_exact_mut(obs_dim))
+                .zip(out.iter_mut().zip(&mut self.finished))
+                .for_each(step_one),
+            Some(pool) => {
+                use rayon::prelude::*;
+                // one consecutive slice of environments per worker
+                let slice = self.envs.len().div_ceil(pool.current_num_threads());
+                let (envs, final_obs, finished) =
+                    (&mut self.envs, &mut self.final_obs, &mut self.finished);
+                pool.install(|| {
+                    envs.par_iter_mut()
+                        .zip(actions.par_chunks_exact(act_dim))
+                        .zip(obs.par_chunks_exact_mut(obs_dim))
+                        .zip(final_obs.par_chunks_exact_mut(obs_dim))
+                        .zip(out.par_iter_mut().zip(finished.par_iter_mut()))
+                        .with_min_len(slice)
+                        .for_each(step_one)
+                });
             }
         }
     }

@@ -202,3 +202,54 @@ fn make_builds_registered_envs() {
         Err(EnvError::Unknown { .. })
     ));
 }
+
+/// Steps `venv` 300 times with actions drawn from a fixed stream and returns every
+/// observation, outcome and final observation, bit for bit.
+fn trajectory(mut venv: VecEnv) -> Vec<(Vec<u32>, Vec<VecStep>, Vec<u32>)> {
+    use rand::{Rng, SeedableRng};
+    let n = venv.num_envs();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+    let mut obs = vec![0.0f32; n * venv.obs_dim()];
+    let mut out = vec![VecStep::default(); n];
+    venv.reset(Some(11), &mut obs);
+    let discrete = matches!(venv.action_space(), Space::Discrete { .. });
+    (0..300)
+        .map(|_| {
+            let actions: Vec<f32> = (0..n * venv.act_dim())
+                .map(|_| {
+                    if discrete {
+                        rng.random_range(0..2) as f32
+                    } else {
+                        rng.random_range(-1.0..1.0)
+                    }
+                })
+                .collect();
+            venv.step(&actions, &mut obs, &mut out);
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+            (bits(&obs), out.clone(), bits(venv.final_obs_buffer()))
+        })
+        .collect()
+}
+
+#[test]
+fn threads_do_not_change_a_single_bit() {
+    for (name, n) in [("CartPole-v1", 5), ("Hopper", 7)] {
+        let serial = VecEnv::make(name, n).expect("registered");
+        assert_eq!(serial.threads(), 1);
+        let reference = trajectory(serial);
+        assert!(
+            reference.iter().any(|(_, out, _)| out.iter().any(VecStep::done)),
+            "{name}: no episode ended, resets untested"
+        );
+        for threads in [2, 3, 64] {
+            let venv = VecEnv::make(name, n)
+                .and_then(|v| v.with_threads(threads))
+                .expect("threads start");
+            assert_eq!(venv.threads(), threads.min(n));
+            assert!(
+                trajectory(venv) == reference,
+                "{name}: {threads} threads changed the trajectory"
+            );
+        }
+    }
+}

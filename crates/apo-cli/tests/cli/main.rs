@@ -118,6 +118,23 @@ fn same_seed_gives_identical_progress() {
 }
 
 #[test]
+fn environment_threads_do_not_change_the_run() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let rows: Vec<Vec<ProgressRow>> = ["1", "2", "3"]
+        .iter()
+        .map(|threads| {
+            let dir = tmp.path().join(format!("threads-{threads}"));
+            train(&dir, "apo", &["--num-envs", "4", "--threads", threads]);
+            timeless(&dir)
+        })
+        .collect();
+    assert_eq!(rows[0].len(), 3);
+    assert!(rows[0].iter().all(|r| r.episodes > 0), "{:?}", rows[0]);
+    assert_eq!(rows[0], rows[1], "2 threads changed the run");
+    assert_eq!(rows[0], rows[2], "3 threads changed the run");
+}
+
+#[test]
 fn resumed_run_matches_uninterrupted_run() {
     let tmp = tempfile::tempdir().expect("tempdir");
     for algo in ["trpo", "papo"] {

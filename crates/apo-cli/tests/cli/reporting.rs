@@ -202,6 +202,7 @@ fn progress_advances_within_the_epoch() {
         tmp.path(),
         &Default::default(),
         false,
+        1,
         &AtomicBool::new(false),
         &mut seen,
     )

@@ -1,4 +1,5 @@
-//! Throughput of one environment under random actions (`apo bench env`).
+//! Throughput of one environment, or of a vector of them, under random actions
+//! (`apo bench env`).
 
 use std::time::Instant;
 
@@ -7,6 +8,7 @@ use rand::{Rng, SeedableRng};
 
 use crate::env::{Action, Env};
 use crate::space::Space;
+use crate::vector::{VecEnv, VecStep};
 
 /// Number of random actions drawn before timing and then cycled through, so that the timed
 /// loop measures the environment and not the random number generator.
@@ -38,6 +40,31 @@ pub fn steps_per_second(env: &mut dyn Env, steps: usize, seed: u64) -> f64 {
         std::hint::black_box((i, &obs));
     }
     steps as f64 / start.elapsed().as_secs_f64()
+}
+
+/// [`steps_per_second`] for a vector of environments: `steps` environment steps in all
+/// (rounded up to whole vector steps), random actions, automatic resets; environment steps
+/// per second of wall time. Returns 0 when `steps` is 0.
+pub fn vector_steps_per_second(envs: &mut VecEnv, steps: usize, seed: u64) -> f64 {
+    if steps == 0 {
+        return 0.0;
+    }
+    let n = envs.num_envs();
+    let mut rng = StdRng::seed_from_u64(seed);
+    let pool: Vec<f32> = (0..ACTION_POOL)
+        .flat_map(|_| random_action(envs.action_space(), &mut rng))
+        .collect();
+    let width = envs.act_dim() * n;
+    let mut obs = vec![0.0f32; envs.obs_dim() * n];
+    let mut out = vec![VecStep::default(); n];
+    envs.reset(Some(seed), &mut obs);
+    let rounds = steps.div_ceil(n);
+    let start = Instant::now();
+    for (round, actions) in pool.chunks_exact(width).cycle().take(rounds).enumerate() {
+        envs.step(actions, &mut obs, &mut out);
+        std::hint::black_box((round, &obs));
+    }
+    (rounds * n) as f64 / start.elapsed().as_secs_f64()
 }
 
 fn random_action(space: &Space, rng: &mut StdRng) -> Vec<f32> {

@@ -8,7 +8,7 @@
 //!   instability check), and [`tasks`]: the ten Gymnasium v4 tasks, registered in
 //!   [`crate::registry`] as `Hopper-v4` etc. (`Hopper` resolves too). Their MJCF models are
 //!   this project's own, embedded.
-//! - [`steps_per_second`]: the `apo bench env` measurement.
+//! - [`steps_per_second`], [`vector_steps_per_second`]: the `apo bench env` measurements.
 //!
 //! See `docs/mujoco.md` for the design, the Send/Sync story and the benchmarks.
 
@@ -27,7 +27,7 @@ mod library;
 mod model;
 pub mod tasks;
 
-pub use bench::steps_per_second;
+pub use bench::{steps_per_second, vector_steps_per_second};
 pub use env::{MujocoEnv, ResetNoise, StepContext, Task};
 pub use error::MujocoError;
 pub use library::{check_library, EXPECTED_VERSION, LIBRARY_ENV_VAR};
