@@ -6,12 +6,14 @@ use crate::space::Space;
 #[derive(Debug, thiserror::Error)]
 pub enum EnvError {
     /// No registered environment has this name.
-    #[error("unknown environment `{name}`; {}", crate::registry::hint(.suggestions))]
+    #[error("unknown environment `{name}`; {}", hint(.suggestions, .registered))]
     Unknown {
         /// The name that was asked for.
         name: String,
         /// Registered names close to it, best first (may be empty).
         suggestions: Vec<String>,
+        /// Every registered name (listed when nothing is close).
+        registered: Vec<String>,
     },
     /// An environment could not be built (for example a model file failed to load).
     #[error("cannot build environment `{name}`: {reason}")]
@@ -57,4 +59,20 @@ pub enum EnvError {
         /// The dimension given.
         found: usize,
     },
+}
+
+/// The end of [`EnvError::Unknown`]'s message: the suggestions, or every registered name.
+fn hint(suggestions: &[String], registered: &[String]) -> String {
+    let quoted = |names: &[String]| {
+        names
+            .iter()
+            .map(|n| format!("`{n}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match suggestions {
+        [] => format!("registered environments: {}", quoted(registered)),
+        [one] => format!("did you mean `{one}`?"),
+        many => format!("did you mean one of {}?", quoted(many)),
+    }
 }

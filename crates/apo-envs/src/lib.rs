@@ -1,6 +1,7 @@
 //! Environments for apo, with Gymnasium semantics.
 
 pub mod classic;
+mod entry;
 pub mod env;
 pub mod error;
 pub mod mujoco;

@@ -14,9 +14,10 @@
 //! Each environment is one line of a static table: name, observation dimension, action space
 //! seen by the policy, time limit and a constructor of the bare environment. Classic control
 //! lives in the table `CLASSIC` of this module; another family (MuJoCo) defines its own
-//! `&[Entry]` table (lines built with `entry(…)`) and adds one line to `TABLES`.
+//! `&[Entry]` table (lines built with `entry(…)`, `crate::entry`) and adds one line to `TABLES`.
 
 use crate::classic::{Acrobot, CartPole, MountainCarContinuous, Pendulum};
+use crate::entry::{entry, Act, Entry};
 use crate::env::Env;
 use crate::error::EnvError;
 use crate::space::Space;
@@ -33,45 +34,6 @@ pub struct EnvSpec {
     pub action_space: Space,
     /// Episodes are truncated after this many steps.
     pub max_episode_steps: usize,
-}
-
-/// The action space of a registry entry, in a form a static table can hold.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Act {
-    /// `n` discrete actions.
-    Discrete(usize),
-    /// A box of this dimension, presented to the policy as `[-1, 1]^d`.
-    Continuous(usize),
-}
-
-/// A constructor of a bare environment (no time limit, actions in the environment's bounds).
-pub(crate) type Build = fn() -> Result<Box<dyn Env>, EnvError>;
-
-/// One registered environment.
-#[derive(Debug)]
-pub(crate) struct Entry {
-    name: &'static str,
-    observation_dim: usize,
-    action: Act,
-    max_episode_steps: usize,
-    build: Build,
-}
-
-/// A table line: `entry(name, observation_dim, action, max_episode_steps, constructor)`.
-pub(crate) const fn entry(
-    name: &'static str,
-    observation_dim: usize,
-    action: Act,
-    max_episode_steps: usize,
-    build: Build,
-) -> Entry {
-    Entry {
-        name,
-        observation_dim,
-        action,
-        max_episode_steps,
-        build,
-    }
 }
 
 /// The classic-control environments, with Gymnasium's time limits.
@@ -185,6 +147,7 @@ fn lookup(name: &str) -> Result<&'static Entry, EnvError> {
     Err(EnvError::Unknown {
         name: name.to_owned(),
         suggestions: suggestions(name),
+        registered: entries().map(|e| e.name.to_owned()).collect(),
     })
 }
 
@@ -215,25 +178,4 @@ fn suggestions(name: &str) -> Vec<String> {
         .take(MAX_SUGGESTIONS)
         .map(|(_, n)| n.to_owned())
         .collect()
-}
-
-/// The end of [`EnvError::Unknown`]'s message: the suggestions, or every registered name.
-pub(crate) fn hint(suggestions: &[String]) -> String {
-    let quoted = |names: &mut dyn Iterator<Item = &str>| {
-        names
-            .map(|n| format!("`{n}`"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    match suggestions {
-        [] => format!(
-            "registered environments: {}",
-            quoted(&mut entries().map(|e| e.name))
-        ),
-        [one] => format!("did you mean `{one}`?"),
-        many => format!(
-            "did you mean one of {}?",
-            quoted(&mut many.iter().map(String::as_str))
-        ),
-    }
 }

@@ -112,7 +112,10 @@ fn names_match_case_insensitively_and_without_version() {
 
 #[test]
 fn misspelled_names_get_suggestions() {
-    let Err(EnvError::Unknown { name, suggestions }) = registry::make("Pendulm-v1") else {
+    let Err(EnvError::Unknown {
+        name, suggestions, ..
+    }) = registry::make("Pendulm-v1")
+    else {
         panic!("expected an unknown-name error");
     };
     assert_eq!(name, "Pendulm-v1");

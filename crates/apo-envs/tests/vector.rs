@@ -238,7 +238,9 @@ fn threads_do_not_change_a_single_bit() {
         assert_eq!(serial.threads(), 1);
         let reference = trajectory(serial);
         assert!(
-            reference.iter().any(|(_, out, _)| out.iter().any(VecStep::done)),
+            reference
+                .iter()
+                .any(|(_, out, _)| out.iter().any(VecStep::done)),
             "{name}: no episode ended, resets untested"
         );
         for threads in [2, 3, 64] {

@@ -9,7 +9,6 @@ use rand_distr::StandardNormal;
 
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
-use super::tasks::Sizes;
 use crate::env::{Action, Env, StepInfo, Transition};
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
@@ -71,6 +70,19 @@ pub struct StepContext<'a> {
     pub before: [f64; 3],
     /// Seconds simulated by the step: `timestep × frame_skip`.
     pub dt: f64,
+}
+
+/// The model sizes a task expects; checked when the environment is built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Sizes {
+    /// Generalized coordinates.
+    pub nq: usize,
+    /// Degrees of freedom.
+    pub nv: usize,
+    /// Actuators (the action dimension).
+    pub nu: usize,
+    /// Bodies, the world included.
+    pub nbody: usize,
 }
 
 /// One MuJoCo task: its model, sizes and the functions that differ between tasks.

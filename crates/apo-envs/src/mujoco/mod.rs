@@ -28,14 +28,14 @@ mod model;
 pub mod tasks;
 
 pub use bench::{steps_per_second, vector_steps_per_second};
-pub use env::{MujocoEnv, ResetNoise, StepContext, Task};
+pub use env::{MujocoEnv, ResetNoise, Sizes, StepContext, Task};
 pub use error::MujocoError;
 pub use library::{check_library, EXPECTED_VERSION, LIBRARY_ENV_VAR};
 pub use model::{ContactForce, Data, Model, ObjKind, Warning};
 
+use crate::entry::{entry, Act, Entry};
 use crate::env::Env;
 use crate::error::EnvError;
-use crate::registry::{entry, Act, Entry};
 use tasks::{
     Ant, HalfCheetah, Hopper, Humanoid, HumanoidStandup, InvertedDoublePendulum, InvertedPendulum,
     Reacher, Swimmer, Walker2d,

@@ -3,23 +3,10 @@
 //! machinery is in [`super::MujocoEnv`]. The models are this project's own MJCF files under
 //! `crates/apo-envs/assets/`, embedded in the binary.
 
-use super::env::{uniform, ResetNoise, StepContext, Task};
+use super::env::{uniform, ResetNoise, Sizes, StepContext, Task};
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
 use crate::rng::EnvRng;
-
-/// The model sizes a task expects; checked when the environment is built.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Sizes {
-    /// Generalized coordinates.
-    pub nq: usize,
-    /// Degrees of freedom.
-    pub nv: usize,
-    /// Actuators (the action dimension).
-    pub nu: usize,
-    /// Bodies, the world included.
-    pub nbody: usize,
-}
 
 /// Writes consecutive values into an observation buffer.
 struct ObsWriter<'a> {
