@@ -143,20 +143,38 @@ impl Collector {
         threads: usize,
     ) -> anyhow::Result<Self> {
         let envs = VecEnv::make(&config.env, config.num_envs)?.with_threads(threads)?;
-        let n = config.num_envs;
+        Ok(Self::from_envs(
+            envs,
+            config.steps_per_epoch,
+            config.algo.gamma,
+            config.algo.lambda,
+            normalizer,
+        ))
+    }
+
+    /// A collector of `steps_per_epoch` steps (rounded up to whole vector steps) from `envs`,
+    /// with discount `gamma` and GAE `lambda`.
+    pub fn from_envs(
+        envs: VecEnv,
+        steps_per_epoch: usize,
+        gamma: f64,
+        lambda: f64,
+        normalizer: Option<RunningMeanStd>,
+    ) -> Self {
+        let n = envs.num_envs();
         let obs_dim = envs.obs_dim();
         let action = action_kind(envs.action_space());
         let dist_width = match action {
             ActionKind::Continuous { dim } => 2 * dim,
             ActionKind::Discrete { n } => n,
         };
-        let steps_per_env = config.steps_per_epoch.div_ceil(n);
+        let steps_per_env = steps_per_epoch.div_ceil(n);
         let layout = BufferLayout {
             observation_dim: obs_dim,
             action_width: action.width(),
             dist_width,
         };
-        Ok(Self {
+        Self {
             obs: vec![0.0; n * obs_dim],
             obs_norm: vec![0.0; n * obs_dim],
             env_actions: Vec::with_capacity(n * envs.act_dim()),
@@ -164,14 +182,12 @@ impl Collector {
             act: ActBuffers::default(),
             values: Vec::with_capacity(n),
             buffers: (0..n)
-                .map(|_| {
-                    RolloutBuffer::new(layout, config.algo.gamma, config.algo.lambda, steps_per_env)
-                })
+                .map(|_| RolloutBuffer::new(layout, gamma, lambda, steps_per_env))
                 .collect(),
             normalizer,
             steps_per_env,
             envs,
-        })
+        }
     }
 
     /// The observation dimension.

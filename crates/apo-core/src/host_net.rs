@@ -46,13 +46,8 @@ fn exp_reduced(x: f32) -> f32 {
 /// NaN stays NaN. Absolute error ≤ 2e−7 against float64 `tanh` (unit-tested).
 #[inline(always)]
 fn tanh_scalar(x: f32) -> f32 {
-    let x = if x < -TANH_SATURATION {
-        -TANH_SATURATION
-    } else if x > TANH_SATURATION {
-        TANH_SATURATION
-    } else {
-        x
-    };
+    // `clamp` keeps NaN
+    let x = x.clamp(-TANH_SATURATION, TANH_SATURATION);
     let e = exp_reduced(2.0 * x);
     (e - 1.0) / (e + 1.0)
 }
@@ -528,12 +523,11 @@ mod tests {
         h
     }
 
+    /// Per layer, `(weight, bias)`.
+    type Layers = Vec<(Vec<f32>, Vec<f32>)>;
+
     /// Random layers of `sizes` and `n` random inputs.
-    pub(crate) fn random_net(
-        sizes: &[usize],
-        n: usize,
-        seed: u64,
-    ) -> (Vec<(Vec<f32>, Vec<f32>)>, Vec<f32>) {
+    pub(crate) fn random_net(sizes: &[usize], n: usize, seed: u64) -> (Layers, Vec<f32>) {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let layers = sizes
             .windows(2)

@@ -276,7 +276,10 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
-    fn problem(seed: u64) -> (Vec<(Vec<f32>, Vec<f32>)>, Vec<f32>, Vec<f32>) {
+    /// Per layer, `(weight, bias)`.
+    type Layers = Vec<(Vec<f32>, Vec<f32>)>;
+
+    fn problem(seed: u64) -> (Layers, Vec<f32>, Vec<f32>) {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let mut draw =
             |len: usize| -> Vec<f32> { (0..len).map(|_| rng.random_range(-0.8..0.8)).collect() };

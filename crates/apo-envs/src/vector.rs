@@ -35,6 +35,16 @@ use crate::error::EnvError;
 use crate::registry;
 use crate::space::Space;
 
+/// What [`VecEnv::step`] hands to one environment's step: the environment, its action row,
+/// its observation row, its final-observation row, and its outcome and finished flag.
+type Row<'a> = (
+    (
+        ((&'a mut Box<dyn Env>, &'a [f32]), &'a mut [f32]),
+        &'a mut [f32],
+    ),
+    (&'a mut VecStep, &'a mut bool),
+);
+
 /// The outcome of one environment in a [`VecEnv::step`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct VecStep {
@@ -236,10 +246,7 @@ impl VecEnv {
         self.check_len("obs", obs.len(), self.obs_dim);
         self.check_len("out", out.len(), 1);
         let (obs_dim, act_dim, space) = (self.obs_dim, self.act_dim, &self.action_space);
-        let step_one = |((((env, action), obs_row), final_row), (step, finished)): (
-            (((&mut Box<dyn Env>, &[f32]), &mut [f32]), &mut [f32]),
-            (&mut VecStep, &mut bool),
-        )| {
+        let step_one = |((((env, action), obs_row), final_row), (step, finished)): Row<'_>| {
             let action = match space {
                 Space::Box { .. } => Action::Continuous(action),
                 Space::Discrete { n } => Action::Discrete(discrete_index(action[0], *n)),

@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use apo_cli::progress::{self, ProgressRow};
 
+mod collector;
 mod hardening;
 mod plot;
 mod reporting;

@@ -677,6 +677,7 @@ pub fn check_at_theta_j<B: Backend>(device: &B::Device, tol: f64) {
         ..fixed
     };
     // (name, objective, batch, mean_surr, mv, vm, objective)
+    #[allow(clippy::type_complexity)]
     let cases: Vec<(
         &str,
         Objective,

@@ -4,7 +4,7 @@
 //!   computes in float64, `wgpu()` fails loudly when no adapter can be found;
 //! * a small deterministic random generator;
 //! * **reference implementations in plain `f64`**, written from the formulas of
-//!   `docs/brief.md` ("The practical APO objective") without calling the library:
+//!   `docs/algorithms.md` (the APO objective, term by term) without calling the library:
 //!   distributions, the MLP forward pass (from a flat parameter vector), every objective;
 //! * finite differences of those references;
 //! * [`backend`]: the backend-generic check bodies (objective terms, gradients, HVPs),
@@ -551,7 +551,7 @@ pub fn sample_batch(
 }
 
 // ---------------------------------------------------------------------------------------
-// Reference objectives (plain f64, from the brief's formulas)
+// Reference objectives (plain f64, from the formulas of docs/algorithms.md)
 // ---------------------------------------------------------------------------------------
 
 /// The terms of an objective, computed by hand.
@@ -575,6 +575,8 @@ fn clampf(x: f64, lo: f64, hi: f64) -> f64 {
 
 /// The objective `obj` for a policy whose log-probabilities of the batch's actions are
 /// `logp` and whose mean KL from the batch's `dist_old` is `kl_mean`.
+// written index by index, as the paper's sums over the batch
+#[allow(clippy::needless_range_loop)]
 pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> RefTerms {
     let n = b.len();
     let ratio: Vec<f64> = (0..n).map(|i| (logp[i] - b.logp_old[i]).exp()).collect();

@@ -482,7 +482,7 @@ fn trust_region_step_on_host_kernels_matches_burns() {
     });
     for c in cases() {
         let tb = c.batch.to_tensors::<F64>(&device);
-        for obj in [Objective::Trpo, apo.clone()] {
+        for obj in [Objective::Trpo, apo] {
             let burn = trust_region_step(&c.cfg, &obj, &c.theta, &tb, &config, Kernels::Backend);
             let host = trust_region_step(&c.cfg, &obj, &c.theta, &tb, &config, Kernels::Host);
             assert_eq!(burn.outcome, host.outcome, "{}", c.name);

@@ -8,6 +8,7 @@
 //!    (`(g(θ + εv) − g(θ − εv)) / 2ε`, ε = 1e-5); the gradient itself is checked against
 //!    finite differences of an independent objective in `objectives.rs`;
 //! 2. mixed central differences of the plain-Rust reference value (no autodiff at all).
+//!
 //! The two agree to ~1e-8, which shows that the reference really is float64 (a float32
 //! finite difference is good to ~1e-2 only).
 

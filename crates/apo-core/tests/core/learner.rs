@@ -39,7 +39,7 @@ fn collect(
         .collect();
     for t in 0..40 {
         let obs = rng.normals(OBS, 1.0);
-        let dist = ref_policy(cfg, theta, &[obs.clone()]);
+        let dist = ref_policy(cfg, theta, std::slice::from_ref(&obs));
         let action = sample_actions(&dist, rng);
         let logp = dist.log_prob(&action)[0];
         let params: Vec<f64> = match &dist {
@@ -249,7 +249,8 @@ fn config_validation_names_the_bad_field() {
             .expect("the paper's defaults are valid");
     }
     let base = AlgoConfig::paper_defaults(Algorithm::Apo);
-    let cases: Vec<(&str, Box<dyn Fn(&mut AlgoConfig)>)> = vec![
+    type Breaks = Vec<(&'static str, Box<dyn Fn(&mut AlgoConfig)>)>;
+    let cases: Breaks = vec![
         ("gamma", Box::new(|c| c.gamma = 1.0)),
         ("k", Box::new(|c| c.k = -1.0)),
         (

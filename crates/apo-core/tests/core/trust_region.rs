@@ -23,6 +23,7 @@ fn matvec(a: &[Vec<f64>], x: &[f64]) -> Vec<f64> {
 }
 
 /// Solves `A x = b` by Gaussian elimination with partial pivoting.
+#[allow(clippy::needless_range_loop)] // textbook row operations, index by index
 fn solve(a: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
     let n = b.len();
     let mut m: Vec<Vec<f64>> = a

@@ -1,0 +1,130 @@
+//! The collector's bootstrapping rules, against rewards-to-go computed by hand: a terminated
+//! episode ends with value 0, a truncated one with V(its final observation), one cut by the
+//! epoch with V(the current observation), an unstable one with 0 (even when it was also
+//! truncated), and an unstable episode is counted, not reported as a return.
+
+use apo_cli::trainer::{Actor, Collector};
+use apo_core::flat::{from_host, unflatten};
+use apo_core::inference::{HostPolicy, HostValue};
+use apo_core::{ActionKind, MlpPolicyConfig, PolicyFamily, ValueConfig};
+use apo_envs::{Action, Env, Space, StepInfo, Transition, VecEnv};
+use burn::backend::NdArray;
+use std::sync::atomic::AtomicBool;
+
+#[derive(Debug, Clone, Copy)]
+enum End {
+    Terminated,
+    Truncated,
+    /// Unstable and truncated at once: the unstable rule must win.
+    Unstable,
+}
+
+/// Plays a script: episodes of the given lengths and endings (the last one never ends),
+/// reward 1 per step, observation `[steps taken in the episode]`.
+struct Script {
+    episodes: Vec<(usize, End)>,
+    episode: usize,
+    t: usize,
+    space: Space,
+}
+
+impl Script {
+    fn boxed(episodes: Vec<(usize, End)>) -> Box<dyn Env> {
+        Box::new(Self {
+            episodes,
+            episode: 0,
+            t: 0,
+            space: Space::uniform_box(1, -1.0, 1.0),
+        })
+    }
+}
+
+impl Env for Script {
+    fn observation_space(&self) -> &Space {
+        &self.space
+    }
+    fn action_space(&self) -> &Space {
+        &self.space
+    }
+    fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
+        self.episode = if seed.is_some() { 0 } else { self.episode + 1 };
+        self.t = 0;
+        obs[0] = 0.0;
+    }
+    fn step(&mut self, _action: Action<'_>, obs: &mut [f32]) -> Transition {
+        self.t += 1;
+        obs[0] = self.t as f32;
+        let mut step = Transition {
+            reward: 1.0,
+            ..Default::default()
+        };
+        if let Some(&(len, end)) = self.episodes.get(self.episode) {
+            if self.t == len {
+                match end {
+                    End::Terminated => step.terminated = true,
+                    End::Truncated => step.truncated = true,
+                    End::Unstable => {
+                        step.truncated = true;
+                        step.info = StepInfo { unstable: true };
+                    }
+                }
+            }
+        }
+        step
+    }
+}
+
+#[test]
+fn bootstrapping_rules_by_hand() {
+    let envs = VecEnv::new(vec![
+        Script::boxed(vec![(2, End::Terminated), (3, End::Truncated)]),
+        Script::boxed(vec![(2, End::Unstable)]),
+    ])
+    .expect("same spaces");
+    // 7 vector steps, γ = 0.5
+    let mut collector = Collector::from_envs(envs, 14, 0.5, 0.97, None);
+    let device = Default::default();
+    let action = ActionKind::Continuous { dim: 1 };
+    let policy = MlpPolicyConfig::new(1, action).init::<NdArray>(&device);
+    // V(s) = s + 4: one linear layer, weight 1, bias 4
+    let value = unflatten(
+        ValueConfig {
+            observation_dim: 1,
+            hidden: vec![],
+        }
+        .init::<NdArray>(&device),
+        from_host::<NdArray>(&[1.0, 4.0], &device),
+    );
+    let mut actor = Actor {
+        policy: HostPolicy::new(&policy, action),
+        value: HostValue::new(&value),
+    };
+    let rollout = collector
+        .collect(&mut actor, 3, &AtomicBool::new(false), &mut |_| {})
+        .expect("not stopped");
+    #[rustfmt::skip]
+    let expected = [
+        // env 0: terminated after 2 steps → last value 0
+        1.5, 1.0,
+        // truncated after 3 → V(final obs [3]) = 7: 1 + 0.5·7, 1 + 0.5·4.5, 1 + 0.5·3.25
+        2.625, 3.25, 4.5,
+        // cut by the epoch after 2 → V(obs [2]) = 6
+        3.0, 4.0,
+        // env 1: unstable (and truncated) after 2 → 0, not V(final obs [2]) = 6
+        1.5, 1.0,
+        // cut by the epoch after 5 → V(obs [5]) = 9
+        2.21875, 2.4375, 2.875, 3.75, 5.5,
+    ];
+    let ret: Vec<f64> = rollout.batch.ret.iter().map(|&r| f64::from(r)).collect();
+    assert_eq!(ret.len(), expected.len());
+    for (i, (got, want)) in ret.iter().zip(&expected).enumerate() {
+        assert!(
+            (got - want).abs() < 1e-6,
+            "ret[{i}] = {got}, expected {want}"
+        );
+    }
+    assert_eq!(rollout.returns, vec![2.0, 3.0]);
+    assert_eq!(rollout.lengths, vec![2, 3]);
+    assert_eq!(rollout.unstable, 1);
+    assert_eq!(rollout.steps, 14);
+}
