@@ -15,6 +15,19 @@ pub enum EnvError {
         /// Every registered name (listed when nothing is close).
         registered: Vec<String>,
     },
+    /// A family could not be registered: one of its names is taken (names are compared
+    /// case-insensitively, as [`crate::registry::make`] matches them).
+    #[error("cannot register `{name}` (family `{family}`): `{existing}` is already registered by family `{holder}`")]
+    AlreadyRegistered {
+        /// The name that was being registered.
+        name: String,
+        /// The family being registered.
+        family: String,
+        /// The registered name it collides with (equal to `name` up to ASCII case).
+        existing: String,
+        /// The family that holds `existing`.
+        holder: String,
+    },
     /// An environment could not be built (for example a model file failed to load).
     #[error("cannot build environment `{name}`: {reason}")]
     Init {

@@ -1,9 +1,9 @@
 //! Environments for apo, with Gymnasium semantics.
 
 pub mod classic;
-mod entry;
 pub mod env;
 pub mod error;
+mod family;
 pub mod mujoco;
 pub mod registry;
 pub mod rng;
@@ -13,7 +13,7 @@ pub mod wrappers;
 
 pub use env::{Action, Env, StepInfo, Transition};
 pub use error::EnvError;
-pub use registry::{list, make, EnvSpec};
+pub use registry::{list, make, register, EnvSpec, Family};
 pub use space::Space;
 pub use vector::{VecEnv, VecStep};
 pub use wrappers::{NormalizeObservation, RescaleAction, RunningMeanStd, TimeLimit};

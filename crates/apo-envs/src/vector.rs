@@ -32,7 +32,6 @@
 
 use crate::env::{Action, Env, StepInfo, Transition};
 use crate::error::EnvError;
-use crate::registry;
 use crate::space::Space;
 
 /// What [`VecEnv::step`] hands to one environment's step: the environment, its action row,
@@ -177,17 +176,6 @@ impl VecEnv {
     /// The number of threads that step the environments.
     pub fn threads(&self) -> usize {
         self.pool.as_ref().map_or(1, |p| p.current_num_threads())
-    }
-
-    /// `num_envs` copies of the registered environment `name`, built by [`registry::make`].
-    ///
-    /// # Errors
-    /// Those of [`registry::make`], and [`EnvError::EmptyVector`] if `num_envs == 0`.
-    pub fn make(name: &str, num_envs: usize) -> Result<Self, EnvError> {
-        let envs = (0..num_envs)
-            .map(|_| registry::make(name))
-            .collect::<Result<Vec<_>, _>>()?;
-        Self::new(envs)
     }
 
     /// The number of environments `n`.

@@ -72,7 +72,7 @@ impl<E: Env> Env for TimeLimit<E> {
 
 /// Lets the policy act in `[-1, 1]^d`: an action `a` is mapped linearly to
 /// `low + (a + 1) / 2 · (high − low)` of the wrapped environment's box and then clipped to
-/// `[low, high]`. Its action space is `[-1, 1]^d`.
+/// `[low, high]`. Its action space is `[-1, 1]^d`, with the wrapped box's shape.
 ///
 /// Needs a box action space with finite bounds. The mapping uses a buffer allocated once.
 #[derive(Debug, Clone)]
@@ -97,8 +97,8 @@ impl<E: Env> RescaleAction<E> {
             space: env.action_space().clone(),
             reason,
         };
-        let (low, high) = match env.action_space() {
-            Space::Box { low, high } => (low.clone(), high.clone()),
+        let (low, high, shape) = match env.action_space() {
+            Space::Box { low, high, shape } => (low.clone(), high.clone(), shape.clone()),
             Space::Discrete { .. } => return Err(unsupported("it needs a box")),
         };
         let finite = low
@@ -113,7 +113,11 @@ impl<E: Env> RescaleAction<E> {
             env,
             low,
             high,
-            action_space: Space::uniform_box(dim, -1.0, 1.0),
+            action_space: Space::Box {
+                low: vec![-1.0; dim],
+                high: vec![1.0; dim],
+                shape,
+            },
             scratch: vec![0.0; dim],
         })
     }
@@ -340,8 +344,8 @@ impl<E: Env> NormalizeObservation<E> {
     /// # Errors
     /// [`EnvError::UnsupportedSpace`] if the observation space is not a box.
     pub fn new(env: E) -> Result<Self, EnvError> {
-        let dim = match env.observation_space() {
-            Space::Box { low, .. } => low.len(),
+        let (dim, shape) = match env.observation_space() {
+            Space::Box { low, shape, .. } => (low.len(), shape.clone()),
             space @ Space::Discrete { .. } => {
                 return Err(EnvError::UnsupportedSpace {
                     wrapper: "NormalizeObservation",
@@ -355,7 +359,11 @@ impl<E: Env> NormalizeObservation<E> {
             env,
             stats: RunningMeanStd::new(dim),
             training: true,
-            observation_space: Space::uniform_box(dim, -RunningMeanStd::CLIP, RunningMeanStd::CLIP),
+            observation_space: Space::Box {
+                low: vec![-RunningMeanStd::CLIP; dim],
+                high: vec![RunningMeanStd::CLIP; dim],
+                shape,
+            },
         })
     }
 

@@ -144,12 +144,13 @@ fn cartpole_terminates_on_position_and_angle_and_pays_the_terminating_step() {
 fn cartpole_spaces() {
     let env = CartPole::new();
     assert_eq!(env.action_space(), &Space::Discrete { n: 2 });
-    let Space::Box { low, high } = env.observation_space() else {
+    let Space::Box { low, high, shape } = env.observation_space() else {
         panic!("box expected")
     };
     let theta_limit = (24.0 * PI / 180.0) as f32;
     assert_eq!(high, &vec![4.8, f32::MAX, theta_limit, f32::MAX]);
     assert_eq!(low, &vec![-4.8, -f32::MAX, -theta_limit, -f32::MAX]);
+    assert_eq!(shape, &vec![4]);
 }
 
 #[test]

@@ -629,7 +629,7 @@ fn random_play_is_stable_in_every_task() {
         .into_iter()
         .filter(|s| s.name.ends_with("-v4"))
     {
-        let mut env = registry::make(spec.name).unwrap();
+        let mut env = registry::make(&spec.name).unwrap();
         let mut obs = vec![0.0; spec.observation_dim];
         let mut rng = rand::rngs::StdRng::seed_from_u64(0);
         env.reset(Some(0), &mut obs);

@@ -309,6 +309,16 @@ fn library_child_missing() {
         .expect("no MuJoCo, no Hopper")
         .to_string();
     assert!(registry_err.contains("libmujoco-dev"), "{registry_err}");
+    assert!(registry_err.contains("`Hopper-v4`"), "{registry_err}");
+    // The suite is still described: its sizes are the tasks' constants.
+    let hopper = apo_envs::registry::spec("Hopper").expect("described without MuJoCo");
+    assert_eq!(
+        (hopper.observation_dim, hopper.action_space.flat_dim()),
+        (11, 3)
+    );
+    let listed = apo_envs::list();
+    assert_eq!(listed.iter().filter(|s| s.family == "mujoco").count(), 10);
+    assert_eq!(listed.iter().filter(|s| s.family == "classic").count(), 4);
 }
 
 #[test]

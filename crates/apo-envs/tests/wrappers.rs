@@ -70,6 +70,7 @@ fn rescale_action_maps_linearly_and_clips() {
         Space::Box {
             low: vec![-2.0, 0.0, 10.0],
             high: vec![2.0, 1.0, 30.0],
+            shape: vec![3],
         },
         None,
     );

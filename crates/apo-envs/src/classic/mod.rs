@@ -24,8 +24,22 @@ pub use mountain_car::MountainCarContinuous;
 pub use pendulum::Pendulum;
 
 use crate::env::Action;
+use crate::family::Family;
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
+
+/// The registry's `classic` family, with Gymnasium's names and time limits.
+pub(crate) fn family() -> Family {
+    let mut family = Family::new("classic");
+    family
+        .add("CartPole-v1", 500, || Ok(Box::new(CartPole::new())))
+        .add("Acrobot-v1", 500, || Ok(Box::new(Acrobot::new())))
+        .add("Pendulum-v1", 200, || Ok(Box::new(Pendulum::new())))
+        .add("MountainCarContinuous-v0", 999, || {
+            Ok(Box::new(MountainCarContinuous::new()))
+        });
+    family
+}
 
 /// What every classic-control environment owns besides its own flags: the physical state,
 /// the RNG and the two spaces. The reset distribution is the environment's `sample` function.
@@ -67,6 +81,7 @@ fn symmetric_box(high: &[f32]) -> Space {
     Space::Box {
         low: high.iter().map(|h| -h).collect(),
         high: high.to_vec(),
+        shape: vec![high.len()],
     }
 }
 

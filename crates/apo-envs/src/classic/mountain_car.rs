@@ -43,6 +43,7 @@ impl MountainCarContinuous {
                 Space::Box {
                     low: vec![MIN_POSITION as f32, -MAX_SPEED as f32],
                     high: vec![MAX_POSITION as f32, MAX_SPEED as f32],
+                    shape: vec![2],
                 },
                 Space::uniform_box(1, MIN_ACTION as f32, MAX_ACTION as f32),
                 sample_state,

@@ -69,7 +69,7 @@ pub fn vector_steps_per_second(envs: &mut VecEnv, steps: usize, seed: u64) -> f6
 
 fn random_action(space: &Space, rng: &mut StdRng) -> Vec<f32> {
     match space {
-        Space::Box { low, high } => low
+        Space::Box { low, high, .. } => low
             .iter()
             .zip(high)
             .map(|(&lo, &hi)| {

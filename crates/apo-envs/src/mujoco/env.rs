@@ -203,7 +203,11 @@ impl<T: Task> MujocoEnv<T> {
             rng: entropy_rng(),
             init_qpos,
             observation_space: Space::uniform_box(T::OBS_DIM, f32::NEG_INFINITY, f32::INFINITY),
-            action_space: Space::Box { low, high },
+            action_space: Space::Box {
+                shape: vec![low.len()],
+                low,
+                high,
+            },
             dt,
         })
     }
