@@ -17,7 +17,7 @@ for env in Pendulum-v1 CartPole-v1; do
     for seed in 0 1 2; do
       config=()
       if [ "$env" = Pendulum-v1 ] && { [ "$algo" = apo ] || [ "$algo" = papo ]; }; then
-        config=(--config configs/pendulum.toml)
+        config=(--set algo.omega1=1e-4)
       fi
       dir="$out/$env-$algo-s$seed"
       # skip runs already complete (header + one row per epoch)

@@ -3,12 +3,13 @@
 
 use std::time::Instant;
 
+use apo_core::algorithm::{ApoConfig, Settings, TrpoConfig};
 use apo_core::flat::{flatten, to_host};
 use apo_core::hvp::hessian_vector_product;
 use apo_core::inference::{ActBuffers, HostPolicy};
 use apo_core::trust_region::trust_region_step;
 use apo_core::{
-    ActionKind, AlgoConfig, Algorithm, Batch, BufferLayout, FisherOperator, Kernels, Learner,
+    ActionKind, AlgoConfig, AlgorithmConfig, Batch, BufferLayout, FisherOperator, Kernels, Learner,
     MlpPolicyConfig, Policy, PolicyFamily, RolloutBuffer, TensorBatch, ValueConfig,
 };
 use burn::backend::Autodiff;
@@ -91,9 +92,10 @@ pub fn update<B: Backend>(
     let mut host = HostPolicy::new(&policy_b, action);
     let batch = synthetic_batch(&mut host, n, obs_dim, act_dim, &mut rng);
     let tb = TensorBatch::<B>::new(&batch, action, device);
+    let (trpo, apo) = (TrpoConfig::paper_defaults(), ApoConfig::paper_defaults());
     let (trpo, apo) = (
-        AlgoConfig::paper_defaults(Algorithm::Trpo),
-        AlgoConfig::paper_defaults(Algorithm::Apo),
+        (trpo.objective(), trpo.trust_region),
+        (apo.objective(), apo.trust_region),
     );
     let (mut trpo_s, mut apo_s, mut tries) = (vec![], vec![], (String::new(), String::new()));
     // one warm-up of each, then alternate so that both see the same machine state
@@ -103,14 +105,7 @@ pub fn update<B: Backend>(
             (&apo, &mut apo_s, &mut tries.1),
         ] {
             let start = Instant::now();
-            let report = trust_region_step(
-                &family,
-                &config.objective(),
-                &theta,
-                &tb,
-                &config.trust_region,
-                kernels,
-            );
+            let report = trust_region_step(&family, &config.0, &theta, &tb, &config.1, kernels);
             if round > 0 {
                 times.push(start.elapsed().as_secs_f64());
             }
@@ -173,7 +168,7 @@ fn value_step<B: Backend>(
     kernels: Kernels,
     repeats: usize,
 ) -> f64 {
-    let mut config = AlgoConfig::paper_defaults(Algorithm::Trpo);
+    let mut config = TrpoConfig::paper_defaults();
     // the policy step is not timed here: make it as short as it gets
     config.trust_region.cg_iters = 1;
     config.trust_region.backtrack_iters = 1;
@@ -183,6 +178,7 @@ fn value_step<B: Backend>(
         hidden: vec![64, 64],
     };
     let family = MlpPolicyConfig::new(obs_dim, action);
+    let config = AlgoConfig::Trpo(config);
     let Ok(mut learner) = Learner::<B, _>::new(family, action, &value, config, device, 0) else {
         return f64::NAN;
     };

@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use apo_core::{ActionKind, Learner, MlpPolicyConfig, PolicyFamily};
-use apo_envs::RunningMeanStd;
+use apo_train::RunState;
 use burn::backend::Autodiff;
 use burn::module::Module;
 use burn::optim::Optimizer;
@@ -40,30 +40,22 @@ const RECORDS: [&str; 4] = ["policy", "value", "policy_optim", "value_optim"];
 const STATE: &str = "state.json";
 const MANIFEST: &str = "manifest.json";
 
-/// The counters saved with the networks.
+/// `state.json`: the format version and the run's counters.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrainState {
     /// Checkpoint format version.
     pub format: u32,
-    /// Epochs completed.
-    pub epoch: usize,
-    /// Environment steps so far.
-    pub env_steps: u64,
-    /// Wall time of the run so far, seconds.
-    pub elapsed_s: f64,
-    /// Observation normalizer statistics, when the run normalizes observations.
-    pub normalizer: Option<RunningMeanStd>,
+    /// Epochs, steps, time, observation-normalizer statistics.
+    #[serde(flatten)]
+    pub run: RunState,
 }
 
 impl TrainState {
-    /// The state of a run that has not completed an epoch.
-    pub fn new(normalizer: Option<RunningMeanStd>) -> Self {
+    /// The state of `run` in this version's format.
+    pub fn new(run: RunState) -> Self {
         Self {
             format: FORMAT,
-            epoch: 0,
-            env_steps: 0,
-            elapsed_s: 0.0,
-            normalizer,
+            run,
         }
     }
 }
@@ -179,7 +171,7 @@ pub fn save<B: Backend>(
 ) -> anyhow::Result<()> {
     let root = dir(run);
     std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
-    let tmp = root.join(format!(".tmp-{}", state.epoch));
+    let tmp = root.join(format!(".tmp-{}", state.run.epoch));
     write_into(&tmp, learner, state, shapes)
         .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
 
@@ -196,8 +188,8 @@ pub fn save<B: Backend>(
         std::fs::remove_dir_all(&previous)?;
     }
     if keep {
-        let kept = root.join(kept_name(state.epoch));
-        let tmp = root.join(format!(".tmp-keep-{}", state.epoch));
+        let kept = root.join(kept_name(state.run.epoch));
+        let tmp = root.join(format!(".tmp-keep-{}", state.run.epoch));
         write_into(&tmp, learner, state, shapes)?;
         if kept.exists() {
             std::fs::remove_dir_all(&kept)?;
@@ -321,7 +313,7 @@ pub fn load<B: Backend>(
             state_path.display()
         ),
     }
-    match (&state.normalizer, shapes.normalize_obs) {
+    match (&state.run.normalizer, shapes.normalize_obs) {
         (Some(n), true) if n.dim() == shapes.observation_dim => {}
         (Some(n), true) => bail!(
             "{}: the observation normalizer has dimension {}, the run's environment {}",
@@ -333,7 +325,7 @@ pub fn load<B: Backend>(
         (Some(_), false) | (None, true) => bail!(
             "{}: the checkpoint {} an observation normalizer but config.toml says normalize_obs = {}",
             state_path.display(),
-            if state.normalizer.is_some() { "has" } else { "has no" },
+            if state.run.normalizer.is_some() { "has" } else { "has no" },
             shapes.normalize_obs
         ),
     }

@@ -12,7 +12,8 @@ use rand::SeedableRng;
 
 use crate::checkpoint::{self, Which};
 use crate::config::RunConfig;
-use crate::trainer::{action_kind, networks, shapes};
+use crate::trainer::shapes;
+use apo_train::action_kind;
 
 /// Returns of evaluation episodes.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,16 +36,19 @@ pub fn evaluate(
 ) -> anyhow::Result<(EvalResult, usize)> {
     let config = RunConfig::load(&run_dir.join("config.toml"))
         .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
-    let mut env = apo_envs::make(&config.env)?;
+    let mut env = apo_envs::make(&config.train.env)?;
     let obs_dim = env.observation_space().flat_dim();
     let action = action_kind(env.action_space());
-    let (policy_cfg, value_cfg) = networks(&config, obs_dim, action);
+    let (policy_cfg, value_cfg) = (
+        config.train.mlp_policy(obs_dim, action),
+        config.train.value(obs_dim),
+    );
     let device = Default::default();
     let mut learner = Learner::<NdArray, _>::new(
         policy_cfg,
         action,
         &value_cfg,
-        config.algo.clone(),
+        config.train.algo.clone(),
         &device,
         0,
     )?;
@@ -72,7 +76,7 @@ pub fn evaluate(
         env.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
         let (mut ret, mut len) = (0.0, 0);
         loop {
-            if let Some(rms) = &state.normalizer {
+            if let Some(rms) = &state.run.normalizer {
                 rms.normalize(&mut obs);
             }
             policy.act(&obs, 1, deterministic, &mut rng, &mut act);
@@ -91,5 +95,5 @@ pub fn evaluate(
         result.returns.push(ret);
         result.lengths.push(len);
     }
-    Ok((result, state.epoch))
+    Ok((result, state.run.epoch))
 }

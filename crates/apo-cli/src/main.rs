@@ -189,7 +189,7 @@ enum BenchCommand {
 
 #[derive(clap::Args)]
 struct TrainArgs {
-    /// Algorithm: apo, papo, trpo, ppo, a2c.
+    /// Algorithm [default with --config: the file's section [algo.<name>]].
     #[arg(long, value_parser = parse_algo)]
     algo: Option<Algorithm>,
     /// Environment name (see `apo list`).
@@ -235,6 +235,15 @@ struct TrainArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+}
+
+/// The registered algorithms' names, comma-separated.
+fn algorithm_names() -> String {
+    Algorithm::ALL
+        .iter()
+        .map(|a| a.name())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn parse_algo(s: &str) -> Result<Algorithm, String> {
@@ -363,10 +372,8 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
         } => {
             let (batch, obs, act, repeats) =
                 (batch as usize, obs as usize, act as usize, repeats as usize);
-            let sized = RunConfig {
-                steps_per_epoch: batch,
-                ..RunConfig::defaults(Algorithm::Apo, "")
-            };
+            let mut sized = RunConfig::defaults(Algorithm::Apo, "");
+            sized.train.steps_per_epoch = batch;
             sized
                 .check_memory(obs, apo_core::ActionKind::Continuous { dim: act })
                 .context("apo bench update --batch/--obs/--act")?;
@@ -416,20 +423,18 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             threads,
         } => {
             let spec = apo_envs::registry::spec(&env)?;
-            let config = RunConfig {
-                env: env.clone(),
-                steps_per_epoch,
-                epochs: epochs as usize,
-                num_envs,
+            let mut config = RunConfig {
                 backend,
                 kernels,
-                checkpoint_every: 1,
                 ..RunConfig::defaults(algo, &env)
             };
+            config.train.steps_per_epoch = steps_per_epoch;
+            config.train.epochs = epochs as usize;
+            config.train.num_envs = num_envs;
             config.validate()?;
             config.check_memory(
                 spec.observation_dim,
-                trainer::action_kind(&spec.action_space),
+                apo_train::action_kind(&spec.action_space),
             )?;
             if backend == BackendKind::Wgpu {
                 quiet_wgpu();
@@ -518,14 +523,10 @@ fn list() -> anyhow::Result<()> {
         );
     }
     println!();
-    println!(
-        "algorithms: {}",
-        Algorithm::ALL
-            .iter()
-            .map(|a| a.name())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    println!("algorithms:");
+    for algo in Algorithm::ALL {
+        println!("  {:<6} {}", algo.name(), algo.about());
+    }
     Ok(())
 }
 
@@ -540,9 +541,9 @@ struct Bar {
 
 impl Bar {
     fn new(quiet: bool, config: &RunConfig) -> Self {
-        let total = (config.steps_per_epoch.div_ceil(config.num_envs)
-            * config.num_envs
-            * config.epochs) as u64;
+        let total = (config.train.steps_per_epoch.div_ceil(config.train.num_envs)
+            * config.train.num_envs
+            * config.train.epochs) as u64;
         let bar = (!quiet).then(|| {
             let bar = ProgressBar::new(total);
             bar.set_style(
@@ -553,7 +554,7 @@ impl Bar {
         });
         Self {
             bar,
-            epochs: config.epochs,
+            epochs: config.train.epochs,
             epoch: 0,
             started: false,
             last: String::new(),
@@ -694,14 +695,14 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
             let mut config = RunConfig::load(&config_path)
                 .with_context(|| format!("{} is not a run directory", dir.display()))?;
             let lock = RunLock::acquire(dir)?;
-            let spec = apo_envs::registry::spec(&config.env)?;
+            let spec = apo_envs::registry::spec(&config.train.env)?;
             if let Some(epochs) = args.epochs {
-                config.epochs = epochs;
+                config.train.epochs = epochs;
                 config.validate()?;
             }
             config.check_memory(
                 spec.observation_dim,
-                trainer::action_kind(&spec.action_space),
+                apo_train::action_kind(&spec.action_space),
             )?;
             if args.epochs.is_some() {
                 // the new target is part of the run: a later plain --resume continues to it
@@ -711,9 +712,16 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
             (config, dir.clone(), true, lock)
         }
         None => {
-            let algo = args
-                .algo
-                .context("--algo is required (apo, papo, trpo, ppo, a2c)")?;
+            let from_file = match &args.config {
+                Some(path) => apo_cli::config::file_algorithm(path)?,
+                None => None,
+            };
+            let algo = args.algo.or(from_file).with_context(|| {
+                format!(
+                    "--algo is required ({}), or a --config file with an [algo.<name>] section",
+                    algorithm_names()
+                )
+            })?;
             let env = args
                 .env
                 .clone()
@@ -743,10 +751,13 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
             let config = RunConfig::build(algo, &env, args.config.as_deref(), &sets)?;
             config.check_memory(
                 spec.observation_dim,
-                trainer::action_kind(&spec.action_space),
+                apo_train::action_kind(&spec.action_space),
             )?;
             let dir = args.out.clone().unwrap_or_else(|| {
-                PathBuf::from(format!("runs/{}-{}-s{}", config.env, algo, config.seed))
+                PathBuf::from(format!(
+                    "runs/{}-{}-s{}",
+                    config.train.env, algo, config.train.seed
+                ))
             });
             let mut prepared = NewRunDir::prepare(&dir, args.force)?;
             let lock = prepared.take_lock().context("the run directory's lock")?;
@@ -818,7 +829,7 @@ fn run_training(
             };
             println!(
                 "interrupted by {name} after epoch {epoch} of {}; checkpoint written. Continue with: apo train --resume {}",
-                config.epochs,
+                config.train.epochs,
                 run_dir.display()
             );
             Ok(ExitCode::from(interrupted_status(signal)))

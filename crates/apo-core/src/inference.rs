@@ -146,8 +146,9 @@ impl HostPolicy {
         }
     }
 
-    /// Acts in `n` states `obs: [n, observation_dim]`: samples (or, if `deterministic`,
-    /// takes the mode) and fills `out`.
+    /// Acts in `n` states `obs: [n, observation_dim]`: computes the distribution parameters
+    /// into `out.dist` and samples from them ([`ActBuffers::sample`]; with `deterministic`,
+    /// takes the mode).
     pub fn act(
         &mut self,
         obs: &[f32],
@@ -157,22 +158,53 @@ impl HostPolicy {
         out: &mut ActBuffers,
     ) {
         let width = self.action.width();
-        let (dist_width, env_width) = (self.dist_width(), self.env_width());
-        out.actions.resize(n * width, 0.0);
-        out.env_actions.resize(n * env_width, 0.0);
-        out.logp.resize(n, 0.0);
+        let dist_width = self.dist_width();
         out.dist.resize(n * dist_width, 0.0);
         let y = self.net.forward(obs, n);
         for r in 0..n {
             let y = &y[r * width..(r + 1) * width];
-            let action = &mut out.actions[r * width..(r + 1) * width];
             let dist = &mut out.dist[r * dist_width..(r + 1) * dist_width];
-            out.logp[r] = match &self.log_std {
+            match &self.log_std {
                 Some(log_std) => {
                     dist[..width].copy_from_slice(y);
                     dist[width..].copy_from_slice(log_std);
+                }
+                None => dist.copy_from_slice(y),
+            }
+        }
+        out.sample(self.action, n, deterministic, rng);
+    }
+}
+
+impl ActBuffers {
+    /// Samples one action per row from the distribution parameters in `self.dist`
+    /// (`[n, dist_width]`: means then log-stds for a Gaussian, logits for a categorical),
+    /// filling `actions` (`[n, action_width]`), `env_actions` (`[n, env_width]`) and `logp`
+    /// (`[n]`). With `deterministic`, takes the mode (the mean, or the most likely action).
+    /// Gaussian rows draw `dim` standard normals in order, categorical rows one uniform.
+    pub fn sample(
+        &mut self,
+        action: ActionKind,
+        n: usize,
+        deterministic: bool,
+        rng: &mut impl Rng,
+    ) {
+        let width = action.width();
+        let (dist_width, env_width) = match action {
+            ActionKind::Continuous { dim } => (2 * dim, dim),
+            ActionKind::Discrete { n } => (n, 1),
+        };
+        self.actions.resize(n * width, 0.0);
+        self.env_actions.resize(n * env_width, 0.0);
+        self.logp.resize(n, 0.0);
+        for r in 0..n {
+            let dist = &self.dist[r * dist_width..(r + 1) * dist_width];
+            let action_row = &mut self.actions[r * width..(r + 1) * width];
+            self.logp[r] = match action {
+                ActionKind::Continuous { .. } => {
+                    let (mean, log_std) = dist.split_at(width);
                     let mut logp = 0.0;
-                    for ((a, &mean), &ls) in action.iter_mut().zip(y).zip(log_std) {
+                    for ((a, &mean), &ls) in action_row.iter_mut().zip(mean).zip(log_std) {
                         let eps: f32 = if deterministic {
                             0.0
                         } else {
@@ -181,11 +213,12 @@ impl HostPolicy {
                         *a = mean + ls.exp() * eps;
                         logp += -0.5 * eps * eps - ls - HALF_LN_2PI;
                     }
-                    out.env_actions[r * env_width..(r + 1) * env_width].copy_from_slice(action);
+                    self.env_actions[r * env_width..(r + 1) * env_width]
+                        .copy_from_slice(action_row);
                     logp
                 }
-                None => {
-                    dist.copy_from_slice(y);
+                ActionKind::Discrete { .. } => {
+                    let y = dist;
                     let max = y.iter().copied().fold(f32::NEG_INFINITY, f32::max);
                     let log_z = max + y.iter().map(|l| (l - max).exp()).sum::<f32>().ln();
                     let choice = if deterministic {
@@ -202,11 +235,11 @@ impl HostPolicy {
                             })
                             .unwrap_or(width - 1)
                     };
-                    action
+                    action_row
                         .iter_mut()
                         .enumerate()
                         .for_each(|(i, a)| *a = if i == choice { 1.0 } else { 0.0 });
-                    out.env_actions[r] = choice as f32;
+                    self.env_actions[r] = choice as f32;
                     y[choice] - log_z
                 }
             };

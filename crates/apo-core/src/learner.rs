@@ -13,8 +13,8 @@ use burn::optim::{Adam, AdamConfig};
 use burn::tensor::backend::Backend;
 use rand::Rng;
 
+use crate::algorithm::{AlgoConfig, ConfigError, PolicyStep};
 use crate::buffer::Batch;
-use crate::config::{AlgoConfig, ConfigError};
 use crate::flat::{flatten, from_host, to_host, unflatten};
 use crate::kernels::Kernels;
 use crate::policy::{ActionKind, Policy, PolicyFamily};
@@ -143,6 +143,11 @@ where
         &self.config
     }
 
+    /// The policy's action kind.
+    pub fn action(&self) -> ActionKind {
+        self.action
+    }
+
     /// The policy family.
     pub fn family(&self) -> &F {
         &self.family
@@ -215,41 +220,41 @@ where
         let scalar = |t: Option<burn::tensor::Tensor<B, 1>>| t.map(|t| to_host(t)[0]);
 
         let tb1 = tb.lift::<Ad<B>>();
-        let (line_search, proximal) = if self.config.algo.is_trust_region() {
-            let report = trust_region_step(
-                &self.family,
-                &objective,
-                &theta,
-                &tb,
-                &self.config.trust_region,
-                self.kernels,
-            );
-            let leaf = from_host::<Ad<B>>(&report.theta, &self.device);
-            self.policy = unflatten(self.policy.clone(), leaf);
-            (Some(report.outcome), None)
-        } else {
-            let policy = self.policy.clone();
-            let (policy, report) = proximal_update(
-                policy,
-                &mut self.policy_optim,
-                &objective,
-                &tb1,
-                &self.config.policy_update,
-                rng,
-            );
-            self.policy = policy;
-            (None, Some(report))
+        let (line_search, proximal) = match self.config.settings().policy_step() {
+            PolicyStep::TrustRegion(trust_region) => {
+                let report = trust_region_step(
+                    &self.family,
+                    &objective,
+                    &theta,
+                    &tb,
+                    trust_region,
+                    self.kernels,
+                );
+                let leaf = from_host::<Ad<B>>(&report.theta, &self.device);
+                self.policy = unflatten(self.policy.clone(), leaf);
+                (Some(report.outcome), None)
+            }
+            PolicyStep::Proximal(policy_update) => {
+                let policy = self.policy.clone();
+                let (policy, report) = proximal_update(
+                    policy,
+                    &mut self.policy_optim,
+                    &objective,
+                    &tb1,
+                    policy_update,
+                    rng,
+                );
+                self.policy = policy;
+                (None, Some(report))
+            }
         };
         let policy_update_s = start.elapsed().as_secs_f64();
         let value_start = std::time::Instant::now();
+        let value_config = self.config.common().value_update;
         let host = match self.kernels {
-            Kernels::Host => host_value_update::<B>(
-                &self.value,
-                &self.value_optim,
-                batch,
-                &self.config.value_update,
-                rng,
-            ),
+            Kernels::Host => {
+                host_value_update::<B>(&self.value, &self.value_optim, batch, &value_config, rng)
+            }
             Kernels::Backend => None,
         };
         let value_report = match host {
@@ -263,7 +268,7 @@ where
                     self.value.clone(),
                     &mut self.value_optim,
                     &tb1,
-                    &self.config.value_update,
+                    &value_config,
                     rng,
                 );
                 self.value = value;

@@ -14,11 +14,12 @@
 //! * [`kernels`] — where the Fisher-vector products and the value fit run: Burn's graph, or
 //!   fused host kernels;
 //! * [`metrics`] — per-epoch statistics, the bound `J − k·Var` and its confidence;
+//! * [`algorithm`] — one module per algorithm: its settings, defaults and policy step;
 //! * [`learner`] — one object that updates a policy and a critic with any algorithm.
 
 mod activation;
+pub mod algorithm;
 pub mod buffer;
-pub mod config;
 pub mod distribution;
 pub mod fisher;
 pub mod flat;
@@ -37,8 +38,10 @@ pub mod trust_region;
 pub mod value;
 mod value_fit;
 
+pub use algorithm::{
+    AlgoConfig, Algorithm, AlgorithmConfig, ConfigError, HMaxMode, PolicyStep, Settings,
+};
 pub use buffer::{Batch, BufferLayout, RolloutBuffer};
-pub use config::{AlgoConfig, Algorithm, ConfigError, HMaxMode};
 pub use distribution::DistParams;
 pub use fisher::FisherOperator;
 pub use kernels::Kernels;

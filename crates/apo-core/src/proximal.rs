@@ -8,6 +8,7 @@ use rand::seq::SliceRandom;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::algorithm::{check, ConfigError};
 use crate::flat::to_host;
 use crate::objective::Objective;
 use crate::policy::Policy;
@@ -26,6 +27,59 @@ pub struct ProximalConfig {
     pub target_kl: Option<f64>,
     /// Minibatch size; `None` is full-batch (the default).
     pub minibatch_size: Option<usize>,
+}
+
+impl ProximalConfig {
+    /// The paper's policy update: 80 full-batch Adam passes at lr 3e-4, stopping once the
+    /// approximate KL exceeds 0.02.
+    pub const PAPER_POLICY: ProximalConfig = ProximalConfig {
+        lr: 3e-4,
+        iters: 80,
+        target_kl: Some(0.02),
+        minibatch_size: None,
+    };
+
+    /// Checks every field's range; errors name the field as `<name>.<field>`.
+    pub fn validate(&self, name: &str) -> Result<(), ConfigError> {
+        let finite_pos = |x: f64| x.is_finite() && x > 0.0;
+        check(
+            finite_pos(self.lr),
+            &format!("{name}.lr"),
+            self.lr,
+            "must be > 0",
+        )?;
+        check(
+            self.iters > 0,
+            &format!("{name}.iters"),
+            self.iters,
+            "must be ≥ 1",
+        )?;
+        if let Some(t) = self.target_kl {
+            check(
+                finite_pos(t),
+                &format!("{name}.target_kl"),
+                t,
+                "must be > 0",
+            )?;
+        }
+        if let Some(m) = self.minibatch_size {
+            check(m > 0, &format!("{name}.minibatch_size"), m, "must be ≥ 1")?;
+        }
+        Ok(())
+    }
+
+    /// Documentation of the keys of an update named `name`.
+    pub fn key_docs(name: &str) -> Vec<(String, &'static str)> {
+        [
+            ("lr", "Adam learning rate (paper: 3e-4 policy, 1e-3 value); > 0"),
+            ("iters", "passes over the batch (paper: 80); ≥ 1"),
+            ("target_kl", "stop early once the approximate KL exceeds this (paper: 0.02 for policies; unused by the value update); > 0, optional"),
+            ("minibatch_size", "minibatch size; optional (unset: full batch)"),
+        ]
+        .into_iter()
+        .map(|(k, d)| (format!("{name}.{k}"), d))
+        .collect()
+    }
 }
 
 /// What a proximal policy update did.

@@ -15,6 +15,7 @@ use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
 use serde::{Deserialize, Serialize};
 
+use crate::algorithm::{check, ConfigError};
 use crate::fisher::FisherOperator;
 use crate::flat::{from_host, to_host, unflatten};
 use crate::hvp::{gradient, hessian_vector_product, Autodiff2};
@@ -50,6 +51,79 @@ impl Default for TrustRegionConfig {
             backtrack_coeff: 0.8,
             backtrack_iters: 100,
         }
+    }
+}
+
+impl TrustRegionConfig {
+    /// Checks every field's range; errors name the field as `trust_region.<field>`.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let finite_nonneg = crate::algorithm::finite_nonneg;
+        check(
+            self.max_kl.is_finite() && self.max_kl > 0.0,
+            "trust_region.max_kl",
+            self.max_kl,
+            "must be > 0",
+        )?;
+        check(
+            self.cg_iters > 0,
+            "trust_region.cg_iters",
+            self.cg_iters,
+            "must be ≥ 1",
+        )?;
+        check(
+            finite_nonneg(self.cg_damping),
+            "trust_region.cg_damping",
+            self.cg_damping,
+            "must be ≥ 0",
+        )?;
+        check(
+            finite_nonneg(self.cg_residual_tol),
+            "trust_region.cg_residual_tol",
+            self.cg_residual_tol,
+            "must be ≥ 0",
+        )?;
+        check(
+            self.backtrack_coeff > 0.0 && self.backtrack_coeff < 1.0,
+            "trust_region.backtrack_coeff",
+            self.backtrack_coeff,
+            "must be in (0, 1)",
+        )?;
+        check(
+            self.backtrack_iters > 0,
+            "trust_region.backtrack_iters",
+            self.backtrack_iters,
+            "must be ≥ 1",
+        )
+    }
+
+    /// Documentation of the keys, `trust_region.<field>`.
+    pub fn key_docs() -> Vec<(String, &'static str)> {
+        [
+            ("trust_region", "the trust-region step"),
+            ("trust_region.max_kl", "KL radius δ (paper: 0.02); > 0"),
+            (
+                "trust_region.cg_iters",
+                "conjugate-gradient iterations; ≥ 1",
+            ),
+            (
+                "trust_region.cg_damping",
+                "damping added to the Fisher matrix, (F + damping·I)x = g; ≥ 0",
+            ),
+            (
+                "trust_region.cg_residual_tol",
+                "CG stops when the squared residual falls below this; ≥ 0",
+            ),
+            (
+                "trust_region.backtrack_coeff",
+                "backtracking coefficient ξ (paper: 0.8); (0, 1)",
+            ),
+            (
+                "trust_region.backtrack_iters",
+                "backtracking tries (paper: 100); ≥ 1",
+            ),
+        ]
+        .map(|(k, d)| (k.to_string(), d))
+        .into()
     }
 }
 

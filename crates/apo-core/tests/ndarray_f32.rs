@@ -114,10 +114,11 @@ fn random_batch(n: usize, obs_dim: usize, seed: u64) -> apo_core::Batch {
 /// through Burn; the largest difference of their critics' parameters after each update, and
 /// of their policies' (which must be equal: the value fit draws the same minibatches).
 fn value_fit_divergence(fits: &[apo_core::Kernels], minibatch: Option<usize>) -> Vec<f64> {
-    use apo_core::{AlgoConfig, Algorithm, Kernels, Learner, MlpPolicyConfig, ValueConfig};
+    use apo_core::algorithm::{AlgoConfig, AlgorithmConfig, PapoConfig};
+    use apo_core::{Kernels, Learner, MlpPolicyConfig, ValueConfig};
     use rand::SeedableRng;
     let (obs_dim, hidden) = (5, vec![16, 16]);
-    let mut config = AlgoConfig::paper_defaults(Algorithm::Papo);
+    let mut config = PapoConfig::paper_defaults();
     config.value_update.iters = 20;
     config.value_update.minibatch_size = minibatch;
     config.policy_update.iters = 3;
@@ -136,7 +137,7 @@ fn value_fit_divergence(fits: &[apo_core::Kernels], minibatch: Option<usize>) ->
                 observation_dim: obs_dim,
                 hidden: hidden.clone(),
             },
-            config.clone(),
+            AlgoConfig::Papo(config.clone()),
             &device(),
             11,
         )

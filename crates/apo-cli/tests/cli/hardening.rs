@@ -150,7 +150,7 @@ fn force_replaces_only_run_directories_and_keeps_foreign_files() {
     );
     assert!(std::fs::read_to_string(run.join("config.toml"))
         .expect("config")
-        .contains("algo = \"a2c\""));
+        .contains("[algo.a2c]"));
 }
 
 #[test]
@@ -401,8 +401,8 @@ fn a_diverging_update_stops_the_run_with_an_error_and_keeps_the_last_good_checkp
     assert!(train(&[]).status.success());
     let config = std::fs::read_to_string(run.join("config.toml")).expect("config");
     let edited = config.replace(
-        "[algo.policy_update]\nlr = 0.0003",
-        "[algo.policy_update]\nlr = 1e30",
+        "[algo.a2c.policy_update]\nlr = 0.0003",
+        "[algo.a2c.policy_update]\nlr = 1e30",
     );
     assert_ne!(edited, config);
     std::fs::write(run.join("config.toml"), edited).expect("edit");

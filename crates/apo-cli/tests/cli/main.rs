@@ -6,7 +6,6 @@ use std::time::{Duration, Instant};
 
 use apo_cli::progress::{self, ProgressRow};
 
-mod collector;
 mod hardening;
 mod plot;
 mod reporting;
@@ -257,16 +256,19 @@ fn bad_input_gets_clear_errors() {
         "{err}"
     );
     for (set, field) in [
-        ("algo.gamma=1.0", "`algo.gamma` = 1"),
-        ("algo.k=-1", "`algo.k` = -1"),
+        ("algo.gamma=1.0", "`algo.apo.gamma` = 1"),
+        ("algo.apo.k=-1", "`algo.apo.k` = -1"),
         (
             "algo.trust_region.max_kl=0",
-            "`algo.trust_region.max_kl` = 0",
+            "`algo.apo.trust_region.max_kl` = 0",
         ),
-        ("algo.clip=1.5", "`algo.clip` = 1.5"),
+        (
+            "algo.clip=0.1",
+            "apo has no setting `clip` (it is a setting of papo, ppo)",
+        ),
         (
             "algo.lamda=0.9",
-            "unknown config key `algo.lamda`; did you mean `algo.lambda`?",
+            "unknown config key `algo.apo.lamda`; did you mean `algo.apo.lambda`?",
         ),
         ("epochs=\"many\"", "config key `epochs`"),
     ] {

@@ -36,7 +36,10 @@ fn help_shows_defaults_and_config_prints_every_key_documented() {
         "{text}"
     );
     assert!(
-        text.contains("# Adam learning rate (paper: 3e-4); > 0\nlr = 0.0003"),
+        text.contains("[algo.papo.policy_update]")
+            && text.contains(
+                "# Adam learning rate (paper: 3e-4 policy, 1e-3 value); > 0\nlr = 0.0003"
+            ),
         "{text}"
     );
     // what `apo config` prints is a config file that reproduces itself
@@ -54,7 +57,7 @@ fn help_shows_defaults_and_config_prints_every_key_documented() {
     ]);
     assert_eq!(again, text);
     let err = fails(&["config", "--algo", "apo", "--set", "algo.k=-1"]);
-    assert!(err.contains("`algo.k` = -1"), "{err}");
+    assert!(err.contains("`algo.apo.k` = -1"), "{err}");
 }
 
 #[test]
@@ -191,11 +194,9 @@ impl Observer for Recorder {
 #[test]
 fn progress_advances_within_the_epoch() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let config = RunConfig {
-        epochs: 2,
-        steps_per_epoch: 1000,
-        ..RunConfig::defaults(Algorithm::Ppo, "CartPole-v1")
-    };
+    let mut config = RunConfig::defaults(Algorithm::Ppo, "CartPole-v1");
+    config.train.epochs = 2;
+    config.train.steps_per_epoch = 1000;
     let mut seen = Recorder::default();
     let end = trainer::train::<burn::backend::NdArray>(
         &config,
@@ -209,7 +210,7 @@ fn progress_advances_within_the_epoch() {
     .expect("trains");
     assert_eq!(end, trainer::TrainEnd::Finished);
     assert_eq!(seen.epochs, vec![1, 2]);
-    let every = trainer::PROGRESS_EVERY as u64;
+    let every = apo_train::rollout::PROGRESS_EVERY as u64;
     let expected: Vec<u64> = (0..1000)
         .step_by(every as usize)
         .chain((1000..2000).step_by(every as usize))

@@ -3,11 +3,11 @@
 //! epoch with V(the current observation), an unstable one with 0 (even when it was also
 //! truncated), and an unstable episode is counted, not reported as a return.
 
-use apo_cli::trainer::{Actor, Collector};
 use apo_core::flat::{from_host, unflatten};
 use apo_core::inference::{HostPolicy, HostValue};
 use apo_core::{ActionKind, MlpPolicyConfig, PolicyFamily, ValueConfig};
 use apo_envs::{Action, Env, Space, StepInfo, Transition, VecEnv};
+use apo_train::{Collector, HostActor};
 use burn::backend::NdArray;
 use std::sync::atomic::AtomicBool;
 
@@ -95,7 +95,7 @@ fn bootstrapping_rules_by_hand() {
         .init::<NdArray>(&device),
         from_host::<NdArray>(&[1.0, 4.0], &device),
     );
-    let mut actor = Actor {
+    let mut actor = HostActor {
         policy: HostPolicy::new(&policy, action),
         value: HostValue::new(&value),
     };

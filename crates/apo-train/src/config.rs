@@ -1,0 +1,162 @@
+//! A run's settings as a plain struct, with the paper's defaults and range checks.
+
+use apo_core::{ActionKind, AlgoConfig, Algorithm, ConfigError, MlpPolicyConfig, ValueConfig};
+use serde::{Deserialize, Serialize};
+
+/// Upper bound of `steps_per_epoch` (far above the paper's; it keeps arithmetic in range).
+pub const MAX_STEPS_PER_EPOCH: usize = 100_000_000;
+/// Upper bound of `num_envs`.
+pub const MAX_NUM_ENVS: usize = 65_536;
+/// Upper bound of the number of hidden layers.
+pub const MAX_LAYERS: usize = 64;
+/// Upper bound of a hidden layer's width.
+pub const MAX_WIDTH: usize = 1 << 20;
+
+/// Everything the training loop needs to know about a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Environment name (see `apo_envs::list`).
+    pub env: String,
+    /// Seed of everything random in the run.
+    pub seed: u64,
+    /// Number of epochs (paper: 200 continuous, 500 Atari).
+    pub epochs: usize,
+    /// Environment steps collected per epoch (paper: 30 000).
+    pub steps_per_epoch: usize,
+    /// Environments stepped together (the epoch's steps are split between them).
+    pub num_envs: usize,
+    /// Normalize observations with running statistics (saved in checkpoints).
+    pub normalize_obs: bool,
+    /// A checkpoint is due every this many epochs (and always at the end and on interrupt).
+    pub checkpoint_every: usize,
+    /// Also keep the checkpoint of every this many epochs (0: keep only the latest).
+    #[serde(default)]
+    pub keep_checkpoint_every: usize,
+    /// Hidden layer sizes of the policy and value networks (paper: [64, 64]).
+    pub hidden: Vec<usize>,
+    /// Initial log standard deviation of Gaussian policies.
+    pub init_log_std: f64,
+    /// The algorithm's hyperparameters.
+    pub algo: AlgoConfig,
+}
+
+impl TrainConfig {
+    /// The paper's defaults for `algo` on `env`: 200 epochs of 30 000 steps, one environment,
+    /// [64, 64] tanh networks, initial log-std −0.5, a checkpoint every epoch.
+    pub fn defaults(algo: Algorithm, env: &str) -> Self {
+        Self {
+            env: env.to_string(),
+            seed: 0,
+            epochs: 200,
+            steps_per_epoch: 30_000,
+            num_envs: 1,
+            normalize_obs: false,
+            checkpoint_every: 1,
+            keep_checkpoint_every: 0,
+            hidden: vec![64, 64],
+            init_log_std: -0.5,
+            algo: AlgoConfig::paper_defaults(algo),
+        }
+    }
+
+    /// Checks the range of every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let check = |ok: bool, field: &str, value: String, rule: &str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(ConfigError {
+                    field: field.into(),
+                    value,
+                    rule: rule.into(),
+                })
+            }
+        };
+        check(
+            self.epochs > 0,
+            "epochs",
+            self.epochs.to_string(),
+            "must be ≥ 1",
+        )?;
+        check(
+            self.num_envs > 0,
+            "num_envs",
+            self.num_envs.to_string(),
+            "must be ≥ 1",
+        )?;
+        check(
+            self.num_envs <= MAX_NUM_ENVS,
+            "num_envs",
+            self.num_envs.to_string(),
+            &format!("must be ≤ {MAX_NUM_ENVS}"),
+        )?;
+        check(
+            self.steps_per_epoch >= self.num_envs,
+            "steps_per_epoch",
+            self.steps_per_epoch.to_string(),
+            "must be ≥ num_envs",
+        )?;
+        check(
+            self.checkpoint_every > 0,
+            "checkpoint_every",
+            self.checkpoint_every.to_string(),
+            "must be ≥ 1",
+        )?;
+        check(
+            !self.hidden.is_empty() && !self.hidden.contains(&0),
+            "hidden",
+            format!("{:?}", self.hidden),
+            "must be a non-empty list of positive sizes",
+        )?;
+        check(
+            (-20.0..=2.0).contains(&self.init_log_std),
+            "init_log_std",
+            self.init_log_std.to_string(),
+            "must be in [-20, 2]",
+        )?;
+        check(
+            self.steps_per_epoch <= MAX_STEPS_PER_EPOCH,
+            "steps_per_epoch",
+            self.steps_per_epoch.to_string(),
+            &format!("must be ≤ {MAX_STEPS_PER_EPOCH}"),
+        )?;
+        check(
+            self.hidden.len() <= MAX_LAYERS && self.hidden.iter().all(|&h| h <= MAX_WIDTH),
+            "hidden",
+            format!("{:?}", self.hidden),
+            &format!("must have at most {MAX_LAYERS} layers of at most {MAX_WIDTH} units"),
+        )?;
+        check(
+            self.seed <= i64::MAX as u64,
+            "seed",
+            self.seed.to_string(),
+            &format!(
+                "must be in 0..={} (TOML integers are signed 64-bit)",
+                i64::MAX
+            ),
+        )?;
+        self.algo.validate().map_err(|e| ConfigError {
+            field: format!("algo.{}.{}", self.algo.algorithm(), e.field),
+            ..e
+        })
+    }
+
+    /// The built-in MLP policy for an environment with `observation_dim` and `action`.
+    pub fn mlp_policy(&self, observation_dim: usize, action: ActionKind) -> MlpPolicyConfig {
+        MlpPolicyConfig {
+            observation_dim,
+            action,
+            hidden: self.hidden.clone(),
+            init_log_std: self.init_log_std,
+        }
+    }
+
+    /// The critic for an environment with `observation_dim`.
+    pub fn value(&self, observation_dim: usize) -> ValueConfig {
+        ValueConfig {
+            observation_dim,
+            hidden: self.hidden.clone(),
+        }
+    }
+}

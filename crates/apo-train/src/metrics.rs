@@ -1,0 +1,127 @@
+//! The metrics of an epoch: one [`ProgressRow`] (the CLI writes them to `progress.csv`).
+
+use apo_core::{EpisodeStats, LineSearchOutcome, UpdateReport};
+use serde::{Deserialize, Serialize};
+
+/// The columns that depend on wall-clock time (everything else is reproducible).
+pub const TIME_COLUMNS: [&str; 5] = [
+    "steps_per_s",
+    "time_s",
+    "rollout_s",
+    "update_pi_s",
+    "update_v_s",
+];
+
+/// One epoch's row. Return statistics are empty when no episode ended in the epoch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProgressRow {
+    /// Epoch number, from 1.
+    pub epoch: usize,
+    /// Environment steps so far.
+    pub env_steps: u64,
+    /// Episodes completed in this epoch (unstable ones excluded).
+    pub episodes: usize,
+    /// Mean return of the epoch's episodes.
+    pub ep_ret_mean: Option<f64>,
+    /// Worst return.
+    pub ep_ret_min: Option<f64>,
+    /// Best return.
+    pub ep_ret_max: Option<f64>,
+    /// Standard deviation of the returns.
+    pub ep_ret_std: Option<f64>,
+    /// Mean episode length.
+    pub ep_len_mean: Option<f64>,
+    /// Empirical bound `J − k·Var`.
+    pub bound: Option<f64>,
+    /// Its Selberg confidence.
+    pub confidence: Option<f64>,
+    /// Mean KL(π_j ‖ π_{j+1}).
+    pub kl: f64,
+    /// Mean entropy of π_j.
+    pub entropy: f64,
+    /// Policy loss (−objective) before the update.
+    pub loss_pi: f64,
+    /// Value MSE before the update.
+    pub loss_v: f64,
+    /// `mean_surr` before the update.
+    pub mean_surr: f64,
+    /// MeanVariance term (APO/PAPO).
+    pub mean_variance: Option<f64>,
+    /// VarianceMean term (APO/PAPO).
+    pub variance_mean: Option<f64>,
+    /// Line search: `accepted:<try>`, `rejected` or `no_step` (APO/TRPO).
+    pub line_search: Option<String>,
+    /// Adam steps taken (PAPO/PPO/A2C).
+    pub pi_steps: Option<usize>,
+    /// Episodes ended by a simulator instability in this epoch.
+    pub unstable_episodes: usize,
+    /// Environment steps per second over the epoch (rollout and update).
+    pub steps_per_s: f64,
+    /// Wall time since the run started, seconds.
+    pub time_s: f64,
+    /// Wall time of the epoch's rollout, seconds.
+    #[serde(default)]
+    pub rollout_s: f64,
+    /// Wall time of the epoch's policy update, seconds.
+    #[serde(default)]
+    pub update_pi_s: f64,
+    /// Wall time of the epoch's value update, seconds.
+    #[serde(default)]
+    pub update_v_s: f64,
+}
+
+/// Wall times of an epoch's phases, seconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EpochTimes {
+    /// The rollout.
+    pub rollout_s: f64,
+    /// Steps per second over the whole epoch.
+    pub steps_per_s: f64,
+    /// Since the run started.
+    pub time_s: f64,
+}
+
+impl ProgressRow {
+    /// A row from an epoch's episode statistics and update report.
+    pub fn new(
+        epoch: usize,
+        env_steps: u64,
+        stats: Option<&EpisodeStats>,
+        unstable_episodes: usize,
+        report: &UpdateReport,
+        times: EpochTimes,
+    ) -> Self {
+        let line_search = report.line_search.map(|o| match o {
+            LineSearchOutcome::Accepted { r#try } => format!("accepted:{}", r#try),
+            LineSearchOutcome::Rejected => "rejected".to_string(),
+            LineSearchOutcome::NoStep => "no_step".to_string(),
+        });
+        Self {
+            epoch,
+            env_steps,
+            episodes: stats.map_or(0, |s| s.count),
+            ep_ret_mean: stats.map(|s| s.ret_mean),
+            ep_ret_min: stats.map(|s| s.ret_min),
+            ep_ret_max: stats.map(|s| s.ret_max),
+            ep_ret_std: stats.map(|s| s.ret_std),
+            ep_len_mean: stats.map(|s| s.len_mean),
+            bound: stats.map(|s| s.bound),
+            confidence: stats.map(|s| s.confidence),
+            kl: report.kl,
+            entropy: report.entropy,
+            loss_pi: report.loss_pi,
+            loss_v: report.loss_v,
+            mean_surr: report.mean_surr,
+            mean_variance: report.mean_variance,
+            variance_mean: report.variance_mean,
+            line_search,
+            pi_steps: report.proximal.map(|p| p.steps),
+            unstable_episodes,
+            steps_per_s: times.steps_per_s,
+            time_s: times.time_s,
+            rollout_s: times.rollout_s,
+            update_pi_s: report.policy_update_s,
+            update_v_s: report.value_update_s,
+        }
+    }
+}

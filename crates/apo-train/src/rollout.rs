@@ -1,0 +1,224 @@
+//! Rollout collection: a vector of environments stepped with one batched actor call per step.
+//!
+//! The epoch's steps are split over `num_envs` environments (rounded up to a multiple of
+//! `num_envs`), stepped together by a [`VecEnv`] (on worker threads when asked; the results do
+//! not depend on it). At the start of each epoch every environment is reset with a seed derived
+//! from the epoch's seed and the action-sampling RNG is reseeded the same way (as SpinningUp
+//! resets its environment when an epoch ends), so an epoch depends only on the seed and the
+//! networks: a resumed run reproduces an uninterrupted one.
+//!
+//! # Bootstrapping
+//!
+//! A path ending by termination bootstraps from 0; one truncated by the time limit from
+//! `V(final observation)`; one cut by the end of the epoch from `V(current observation)`.
+//! An episode ended by a simulator instability is treated as terminated (value 0), counted in
+//! [`Rollout::unstable`], and left out of the return statistics.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use apo_core::inference::ActBuffers;
+use apo_core::{ActionKind, BufferLayout, RolloutBuffer};
+use apo_envs::{RunningMeanStd, Space, VecEnv, VecStep};
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+
+use crate::actor::Act;
+use crate::seed::derive_seed;
+
+/// The policy's action kind for an environment's action space.
+pub fn action_kind(space: &Space) -> ActionKind {
+    match space {
+        Space::Box { low, .. } => ActionKind::Continuous { dim: low.len() },
+        Space::Discrete { n } => ActionKind::Discrete { n: *n },
+    }
+}
+
+/// What one epoch's rollout produced.
+pub struct Rollout {
+    /// The transitions.
+    pub batch: apo_core::Batch,
+    /// Returns of the episodes that ended.
+    pub returns: Vec<f64>,
+    /// Their lengths.
+    pub lengths: Vec<usize>,
+    /// Episodes ended by a simulator instability.
+    pub unstable: usize,
+    /// Environment steps taken.
+    pub steps: u64,
+}
+
+/// How often (in vector steps) [`Collector::collect`] reports its progress.
+pub const PROGRESS_EVERY: usize = 256;
+
+/// Collects the epoch's transitions; `None` when `stop` was raised mid-way.
+pub struct Collector {
+    envs: VecEnv,
+    obs: Vec<f32>,
+    obs_norm: Vec<f32>,
+    env_actions: Vec<f32>,
+    out: Vec<VecStep>,
+    act: ActBuffers,
+    values: Vec<f32>,
+    buffers: Vec<RolloutBuffer>,
+    normalizer: Option<RunningMeanStd>,
+    steps_per_env: usize,
+}
+
+impl Collector {
+    /// A collector of `steps_per_epoch` steps (rounded up to whole vector steps) from `envs`,
+    /// with discount `gamma` and GAE `lambda`.
+    pub fn from_envs(
+        envs: VecEnv,
+        steps_per_epoch: usize,
+        gamma: f64,
+        lambda: f64,
+        normalizer: Option<RunningMeanStd>,
+    ) -> Self {
+        let n = envs.num_envs();
+        let obs_dim = envs.obs_dim();
+        let action = action_kind(envs.action_space());
+        let dist_width = match action {
+            ActionKind::Continuous { dim } => 2 * dim,
+            ActionKind::Discrete { n } => n,
+        };
+        let steps_per_env = steps_per_epoch.div_ceil(n);
+        let layout = BufferLayout {
+            observation_dim: obs_dim,
+            action_width: action.width(),
+            dist_width,
+        };
+        Self {
+            obs: vec![0.0; n * obs_dim],
+            obs_norm: vec![0.0; n * obs_dim],
+            env_actions: Vec::with_capacity(n * envs.act_dim()),
+            out: vec![VecStep::default(); n],
+            act: ActBuffers::default(),
+            values: Vec::with_capacity(n),
+            buffers: (0..n)
+                .map(|_| RolloutBuffer::new(layout, gamma, lambda, steps_per_env))
+                .collect(),
+            normalizer,
+            steps_per_env,
+            envs,
+        }
+    }
+
+    /// The observation dimension.
+    pub fn observation_dim(&self) -> usize {
+        self.envs.obs_dim()
+    }
+
+    /// The policy's action kind.
+    pub fn action(&self) -> ActionKind {
+        action_kind(self.envs.action_space())
+    }
+
+    /// The observation normalizer's statistics.
+    pub fn normalizer(&self) -> Option<&RunningMeanStd> {
+        self.normalizer.as_ref()
+    }
+
+    /// Restores the observation normalizer's statistics.
+    pub fn set_normalizer(&mut self, normalizer: Option<RunningMeanStd>) {
+        self.normalizer = normalizer;
+    }
+
+    fn normalized(&self, raw: &[f32], out: &mut [f32]) {
+        out.copy_from_slice(raw);
+        if let Some(rms) = &self.normalizer {
+            rms.normalize(out);
+        }
+    }
+
+    /// Runs one epoch's rollout with `actor`, seeded by `seed`; `progress` is told the
+    /// epoch's environment steps so far every [`PROGRESS_EVERY`] vector steps.
+    pub fn collect(
+        &mut self,
+        actor: &mut dyn Act,
+        seed: u64,
+        stop: &AtomicBool,
+        progress: &mut dyn FnMut(u64),
+    ) -> Option<Rollout> {
+        let n = self.envs.num_envs();
+        let obs_dim = self.envs.obs_dim();
+        let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 1));
+        self.envs
+            .reset(Some(derive_seed(seed, 0, 0)), &mut self.obs);
+        let (mut ep_ret, mut ep_len) = (vec![0.0f64; n], vec![0usize; n]);
+        let mut rollout = Rollout {
+            batch: Default::default(),
+            returns: vec![],
+            lengths: vec![],
+            unstable: 0,
+            steps: 0,
+        };
+        let mut row = vec![0.0f32; obs_dim];
+        for t in 0..self.steps_per_env {
+            if stop.load(Ordering::Relaxed) {
+                return None;
+            }
+            if t % PROGRESS_EVERY == 0 {
+                progress(rollout.steps);
+            }
+            if let Some(rms) = &mut self.normalizer {
+                rms.update(&self.obs, n);
+            }
+            let mut obs_norm = std::mem::take(&mut self.obs_norm);
+            self.normalized(&self.obs, &mut obs_norm);
+            actor.act(&obs_norm, n, &mut rng, &mut self.act);
+            self.values.clear();
+            self.values.extend_from_slice(actor.values(&obs_norm, n));
+            self.env_actions.clear();
+            self.env_actions.extend_from_slice(&self.act.env_actions);
+            self.envs
+                .step(&self.env_actions, &mut self.obs, &mut self.out);
+            rollout.steps += n as u64;
+            let (aw, dw) = (self.act.actions.len() / n, self.act.dist.len() / n);
+            for i in 0..n {
+                let step = self.out[i];
+                self.buffers[i].store(
+                    &obs_norm[i * obs_dim..(i + 1) * obs_dim],
+                    &self.act.actions[i * aw..(i + 1) * aw],
+                    self.act.logp[i],
+                    &self.act.dist[i * dw..(i + 1) * dw],
+                    self.values[i],
+                    step.reward as f32,
+                );
+                ep_ret[i] += step.reward;
+                ep_len[i] += 1;
+                if !step.done() {
+                    continue;
+                }
+                let last_value = if step.terminated || step.info.unstable {
+                    0.0
+                } else {
+                    let final_obs = self
+                        .envs
+                        .final_obs(i)
+                        .unwrap_or(&self.obs[i * obs_dim..(i + 1) * obs_dim]);
+                    self.normalized(final_obs, &mut row);
+                    actor.values(&row, 1)[0]
+                };
+                self.buffers[i].finish_path(last_value);
+                if step.info.unstable {
+                    rollout.unstable += 1;
+                } else {
+                    rollout.returns.push(ep_ret[i]);
+                    rollout.lengths.push(ep_len[i]);
+                }
+                ep_ret[i] = 0.0;
+                ep_len[i] = 0;
+            }
+            self.obs_norm = obs_norm;
+        }
+        for i in 0..n {
+            if self.buffers[i].path_len() > 0 {
+                self.normalized(&self.obs[i * obs_dim..(i + 1) * obs_dim], &mut row);
+                let last_value = actor.values(&row, 1)[0];
+                self.buffers[i].finish_path(last_value);
+            }
+        }
+        rollout.batch = RolloutBuffer::take_all(&mut self.buffers);
+        Some(rollout)
+    }
+}

@@ -1,0 +1,336 @@
+//! The epoch loop: collect `steps_per_epoch` transitions with the current policy, update,
+//! measure, and say when a checkpoint is due.
+//!
+//! A [`Trainer`] owns the learner, the collector and the actor. Each [`Trainer::epoch`] runs one
+//! rollout (seeded from the run seed and the epoch number, see [`crate::seed`]), one update
+//! (its update RNG seeded the same way), rebuilds the actor from the updated networks and
+//! returns the epoch's [`ProgressRow`]. After every update the losses, the KL and the parameters
+//! are checked: a non-finite value is an error and the epoch's counters are not advanced.
+//! [`Trainer::checkpoint_due`] is the checkpoint schedule; writing checkpoints is the caller's
+//! (the `apo` CLI writes them atomically into the run directory, and restores a run with
+//! [`Trainer::learner_mut`] and [`Trainer::restore`]).
+
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use apo_core::ValueConfig;
+use apo_core::{ActionKind, EpisodeStats, Learner, MlpPolicyConfig, PolicyFamily, UpdateReport};
+use apo_envs::{RunningMeanStd, VecEnv};
+use burn::backend::Autodiff;
+use burn::module::AutodiffModule;
+use burn::tensor::backend::Backend;
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use serde::{Deserialize, Serialize};
+
+use crate::actor::{Actor, HostActor};
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+use crate::metrics::{EpochTimes, ProgressRow};
+use crate::rollout::{action_kind, Collector};
+use crate::seed::derive_seed;
+
+/// The counters of a run: what a checkpoint must hold besides the networks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunState {
+    /// Epochs completed.
+    pub epoch: usize,
+    /// Environment steps so far.
+    pub env_steps: u64,
+    /// Wall time of the run so far, seconds.
+    pub elapsed_s: f64,
+    /// Observation normalizer statistics, when the run normalizes observations.
+    pub normalizer: Option<RunningMeanStd>,
+}
+
+/// A checkpoint the schedule asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Checkpoint {
+    /// Also keep this epoch's checkpoint (every `keep_checkpoint_every` epochs).
+    pub keep: bool,
+}
+
+/// What one epoch did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpochReport {
+    /// The epoch's metrics.
+    pub row: ProgressRow,
+    /// The update's full report.
+    pub update: UpdateReport,
+}
+
+/// Trains a policy of family `F` with a learner on backend `B`, acting through `A`.
+pub struct Trainer<B: Backend, F: PolicyFamily, A: Actor<B, F>>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
+    config: TrainConfig,
+    learner: Learner<B, F>,
+    value: ValueConfig,
+    collector: Collector,
+    actor: A,
+    state: RunState,
+    /// When this process started training, and the run's elapsed time before it.
+    started: (Instant, f64),
+}
+
+impl<B: Backend> Trainer<B, MlpPolicyConfig, HostActor> {
+    /// A trainer of the built-in MLP policy (`config.hidden`, tanh) acting through the host
+    /// copies of its networks, with the environments stepped on `threads` threads (0: the
+    /// cores available; the results do not depend on it).
+    ///
+    /// # Errors
+    /// [`TrainError::Config`] for a setting out of range, [`TrainError::Env`] when the
+    /// environments cannot be made.
+    pub fn mlp(
+        config: TrainConfig,
+        device: &B::Device,
+        threads: usize,
+    ) -> Result<Self, TrainError> {
+        Self::new(
+            config,
+            device,
+            threads,
+            |config, observation_dim, action| config.mlp_policy(observation_dim, action),
+        )
+    }
+}
+
+impl<B: Backend, F: PolicyFamily, A: Actor<B, F>> Trainer<B, F, A>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
+    /// A trainer of the policy family that `family` builds for the environment's observation
+    /// dimension and action kind, on `config.num_envs` copies of the registered environment
+    /// `config.env` stepped on `threads` threads (0: the cores available; the results do not
+    /// depend on it). The networks are initialized from `config.seed` on `device`.
+    ///
+    /// # Errors
+    /// [`TrainError::Config`] for a setting out of range, [`TrainError::Env`] when the
+    /// environments cannot be made.
+    pub fn new(
+        config: TrainConfig,
+        device: &B::Device,
+        threads: usize,
+        family: impl FnOnce(&TrainConfig, usize, ActionKind) -> F,
+    ) -> Result<Self, TrainError> {
+        config.validate()?;
+        let envs = VecEnv::make(&config.env, config.num_envs)?.with_threads(threads)?;
+        Self::from_envs(config, envs, device, family)
+    }
+
+    /// A trainer on the given vector of environments (any [`apo_envs::Env`], registered or
+    /// not; `config.env` and `config.num_envs` are then only labels).
+    ///
+    /// # Errors
+    /// [`TrainError::Config`] for a setting out of range.
+    pub fn from_envs(
+        config: TrainConfig,
+        envs: VecEnv,
+        device: &B::Device,
+        family: impl FnOnce(&TrainConfig, usize, ActionKind) -> F,
+    ) -> Result<Self, TrainError> {
+        config.validate()?;
+        let (observation_dim, action) = (envs.obs_dim(), action_kind(envs.action_space()));
+        let normalizer = config
+            .normalize_obs
+            .then(|| RunningMeanStd::new(observation_dim));
+        let collector = Collector::from_envs(
+            envs,
+            config.steps_per_epoch,
+            config.algo.common().gamma,
+            config.algo.common().lambda,
+            normalizer.clone(),
+        );
+        let value = config.value(observation_dim);
+        let family = family(&config, observation_dim, action);
+        let learner = Learner::new(
+            family,
+            action,
+            &value,
+            config.algo.clone(),
+            device,
+            config.seed,
+        )?;
+        let actor = A::from_learner(&learner, &value);
+        Ok(Self {
+            state: RunState {
+                epoch: 0,
+                env_steps: 0,
+                elapsed_s: 0.0,
+                normalizer,
+            },
+            started: (Instant::now(), 0.0),
+            config,
+            learner,
+            value,
+            collector,
+            actor,
+        })
+    }
+
+    /// The run's settings.
+    pub fn config(&self) -> &TrainConfig {
+        &self.config
+    }
+
+    /// The learner (networks, optimizers, hyperparameters).
+    pub fn learner(&self) -> &Learner<B, F> {
+        &self.learner
+    }
+
+    /// The learner, to restore its networks from a checkpoint or change its kernels; call
+    /// [`Trainer::restore`] afterwards so that the actor acts with the restored networks.
+    pub fn learner_mut(&mut self) -> &mut Learner<B, F> {
+        &mut self.learner
+    }
+
+    /// The critic's sizes.
+    pub fn value_config(&self) -> &ValueConfig {
+        &self.value
+    }
+
+    /// The environment's observation dimension.
+    pub fn observation_dim(&self) -> usize {
+        self.collector.observation_dim()
+    }
+
+    /// The policy's action kind.
+    pub fn action(&self) -> ActionKind {
+        self.collector.action()
+    }
+
+    /// The run's counters.
+    pub fn state(&self) -> &RunState {
+        &self.state
+    }
+
+    /// Continues a run from its counters (with the learner already restored through
+    /// [`Trainer::learner_mut`]): sets them, the observation normalizer, and rebuilds the actor.
+    ///
+    /// # Errors
+    /// [`TrainError::PastTheEnd`] when `state` has more epochs done than `config.epochs`.
+    pub fn restore(&mut self, state: RunState) -> Result<(), TrainError> {
+        if state.epoch > self.config.epochs {
+            return Err(TrainError::PastTheEnd {
+                done: state.epoch,
+                epochs: self.config.epochs,
+            });
+        }
+        self.collector.set_normalizer(state.normalizer.clone());
+        self.started = (Instant::now(), state.elapsed_s);
+        self.state = state;
+        self.actor = A::from_learner(&self.learner, &self.value);
+        Ok(())
+    }
+
+    /// Whether every epoch has run.
+    pub fn finished(&self) -> bool {
+        self.state.epoch >= self.config.epochs
+    }
+
+    /// Runs the next epoch: rollout, update, metrics. `progress` is told the run's environment
+    /// steps every [`crate::rollout::PROGRESS_EVERY`] vector steps. Returns `None` when every
+    /// epoch has run, or when `stop` was raised during the rollout (the epoch is then dropped:
+    /// the counters stay at the last completed epoch).
+    ///
+    /// # Errors
+    /// [`TrainError::NonFinite`] when the update produced a non-finite loss, KL, entropy or
+    /// parameter (the counters stay at the last completed epoch).
+    pub fn epoch(
+        &mut self,
+        stop: &AtomicBool,
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Option<EpochReport>, TrainError> {
+        if self.finished() {
+            return Ok(None);
+        }
+        let epoch_start = Instant::now();
+        let seed = derive_seed(self.config.seed, self.state.epoch as u64, 0);
+        let steps_before = self.state.env_steps;
+        let Some(rollout) = self
+            .collector
+            .collect(&mut self.actor, seed, stop, &mut |steps| {
+                progress(steps_before + steps)
+            })
+        else {
+            return Ok(None);
+        };
+        let rollout_s = epoch_start.elapsed().as_secs_f64();
+        let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
+        let update = self.learner.update(&rollout.batch, &mut rng);
+        if let Some(what) = non_finite(&update, &self.learner) {
+            return Err(TrainError::NonFinite {
+                epoch: self.state.epoch + 1,
+                what,
+            });
+        }
+        self.actor = A::from_learner(&self.learner, &self.value);
+
+        let state = &mut self.state;
+        state.epoch += 1;
+        state.env_steps += rollout.steps;
+        state.elapsed_s = self.started.1 + self.started.0.elapsed().as_secs_f64();
+        state.normalizer = self.collector.normalizer().cloned();
+        let stats = EpisodeStats::from_episodes(
+            &rollout.returns,
+            &rollout.lengths,
+            self.config.algo.probability_factor(),
+        );
+        let steps_per_s = rollout.steps as f64 / epoch_start.elapsed().as_secs_f64().max(1e-9);
+        let row = ProgressRow::new(
+            state.epoch,
+            state.env_steps,
+            stats.as_ref(),
+            rollout.unstable,
+            &update,
+            EpochTimes {
+                rollout_s,
+                steps_per_s,
+                time_s: state.elapsed_s,
+            },
+        );
+        Ok(Some(EpochReport { row, update }))
+    }
+
+    /// The checkpoint schedule after the last completed epoch: one is due every
+    /// `checkpoint_every` epochs, at the last epoch, every `keep_checkpoint_every` epochs
+    /// (kept), and when the run is being `interrupted`.
+    pub fn checkpoint_due(&self, interrupted: bool) -> Option<Checkpoint> {
+        let (epoch, config) = (self.state.epoch, &self.config);
+        let keep =
+            config.keep_checkpoint_every > 0 && epoch.is_multiple_of(config.keep_checkpoint_every);
+        (interrupted
+            || keep
+            || epoch.is_multiple_of(config.checkpoint_every)
+            || epoch == config.epochs)
+            .then_some(Checkpoint { keep })
+    }
+}
+
+/// What is not finite after an update, if anything: a loss, the KL, the entropy, or a parameter.
+fn non_finite<B: Backend, F: PolicyFamily>(
+    report: &UpdateReport,
+    learner: &Learner<B, F>,
+) -> Option<String>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
+    let scalars = [
+        ("loss_pi", report.loss_pi),
+        ("loss_v", report.loss_v),
+        ("kl", report.kl),
+        ("entropy", report.entropy),
+        ("mean_surr", report.mean_surr),
+    ];
+    if let Some((name, value)) = scalars.iter().find(|(_, v)| !v.is_finite()) {
+        return Some(format!("a non-finite {name} = {value}"));
+    }
+    if learner.policy_params().iter().any(|p| !p.is_finite()) {
+        return Some("non-finite policy parameters".to_string());
+    }
+    if learner.value_params().iter().any(|p| !p.is_finite()) {
+        return Some("non-finite value-network parameters".to_string());
+    }
+    None
+}

@@ -1,0 +1,150 @@
+//! The epoch loop: the checkpoint schedule, interrupts, restoring, and acting through the host
+//! MLP and through any Burn policy module.
+
+use std::sync::atomic::AtomicBool;
+
+use apo_core::inference::ActBuffers;
+use apo_core::{Algorithm, Learner, MlpPolicyConfig};
+use apo_train::{
+    Act, Actor, BurnActor, Checkpoint, HostActor, RunState, TrainConfig, TrainError, Trainer,
+};
+use burn::backend::NdArray;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+fn small(algo: Algorithm, env: &str, epochs: usize, steps: usize) -> TrainConfig {
+    let mut config = TrainConfig::defaults(algo, env);
+    config.epochs = epochs;
+    config.steps_per_epoch = steps;
+    config.num_envs = 2;
+    config.hidden = vec![8];
+    config
+}
+
+#[test]
+fn checkpoints_are_due_every_n_epochs_kept_every_m_at_the_end_and_on_interrupt() {
+    let mut config = small(Algorithm::Ppo, "CartPole-v1", 5, 32);
+    config.checkpoint_every = 2;
+    config.keep_checkpoint_every = 3;
+    let mut trainer = Trainer::<NdArray, _, _>::mlp(config, &Default::default(), 1).expect("valid");
+    let stop = AtomicBool::new(false);
+    let mut due = Vec::new();
+    let mut interrupted = Vec::new();
+    while let Some(epoch) = trainer.epoch(&stop, &mut |_| {}).expect("finite") {
+        assert_eq!(epoch.row.epoch, trainer.state().epoch);
+        due.push(trainer.checkpoint_due(false));
+        interrupted.push(trainer.checkpoint_due(true));
+    }
+    let plain = Some(Checkpoint { keep: false });
+    let kept = Some(Checkpoint { keep: true });
+    // epoch 1: nothing; 2: every 2; 3: kept (every 3); 4: every 2; 5: the last
+    assert_eq!(due, vec![None, plain, kept, plain, plain]);
+    assert!(interrupted.iter().all(Option::is_some));
+    assert!(trainer.finished());
+    assert_eq!(trainer.state().env_steps, 5 * 32);
+}
+
+#[test]
+fn a_stop_during_the_rollout_drops_the_epoch_and_restore_checks_the_end() {
+    let config = small(Algorithm::Trpo, "CartPole-v1", 2, 64);
+    let mut trainer = Trainer::<NdArray, _, _>::mlp(config, &Default::default(), 1).expect("valid");
+    let stopped = trainer
+        .epoch(&AtomicBool::new(true), &mut |_| {})
+        .expect("no error");
+    assert!(stopped.is_none());
+    assert_eq!(trainer.state().epoch, 0);
+    assert_eq!(trainer.state().env_steps, 0);
+
+    let past = RunState {
+        epoch: 3,
+        env_steps: 192,
+        elapsed_s: 1.0,
+        normalizer: None,
+    };
+    match trainer.restore(past) {
+        Err(TrainError::PastTheEnd { done: 3, epochs: 2 }) => {}
+        other => panic!("expected PastTheEnd, got {other:?}"),
+    }
+    let one = RunState {
+        epoch: 1,
+        env_steps: 64,
+        elapsed_s: 1.0,
+        normalizer: None,
+    };
+    trainer.restore(one).expect("within the run");
+    let epoch = trainer
+        .epoch(&AtomicBool::new(false), &mut |_| {})
+        .expect("finite")
+        .expect("an epoch");
+    assert_eq!((epoch.row.epoch, epoch.row.env_steps), (2, 128));
+    assert!(epoch.row.time_s >= 1.0, "elapsed time carries over");
+}
+
+#[test]
+fn the_host_and_burn_actors_act_alike_on_the_built_in_mlp() {
+    let (obs_dim, n) = (3, 5);
+    for action in [
+        apo_core::ActionKind::Continuous { dim: 2 },
+        apo_core::ActionKind::Discrete { n: 4 },
+    ] {
+        let config = small(Algorithm::Apo, "x", 1, 10);
+        let family = config.mlp_policy(obs_dim, action);
+        let value = config.value(obs_dim);
+        let learner = Learner::<NdArray, MlpPolicyConfig>::new(
+            family,
+            action,
+            &value,
+            config.algo.clone(),
+            &Default::default(),
+            3,
+        )
+        .expect("valid");
+        let mut host = <HostActor as Actor<NdArray, _>>::from_learner(&learner, &value);
+        let mut burn =
+            <BurnActor<MlpPolicyConfig> as Actor<NdArray, _>>::from_learner(&learner, &value);
+        let mut rng = StdRng::seed_from_u64(0);
+        let obs: Vec<f32> = (0..n * obs_dim)
+            .map(|_| rng.random_range(-2.0..2.0))
+            .collect();
+        let (mut a, mut b) = (ActBuffers::default(), ActBuffers::default());
+        host.act(&obs, n, &mut StdRng::seed_from_u64(9), &mut a);
+        burn.act(&obs, n, &mut StdRng::seed_from_u64(9), &mut b);
+        let close = |x: &[f32], y: &[f32], what: &str| {
+            assert_eq!(x.len(), y.len(), "{what}");
+            for (i, (x, y)) in x.iter().zip(y).enumerate() {
+                assert!((x - y).abs() < 1e-4, "{action:?} {what}[{i}]: {x} vs {y}");
+            }
+        };
+        close(&a.dist, &b.dist, "dist");
+        close(&a.actions, &b.actions, "actions");
+        close(&a.env_actions, &b.env_actions, "env_actions");
+        close(&a.logp, &b.logp, "logp");
+        let host_v = host.values(&obs, n).to_vec();
+        close(&host_v, burn.values(&obs, n), "values");
+    }
+}
+
+#[test]
+fn any_policy_family_trains_through_the_loop_with_the_burn_actor() {
+    let config = small(Algorithm::Papo, "Pendulum-v1", 2, 100);
+    let mut trainer = Trainer::<NdArray, MlpPolicyConfig, BurnActor<_>>::new(
+        config,
+        &Default::default(),
+        1,
+        |config, obs, action| config.mlp_policy(obs, action),
+    )
+    .expect("valid");
+    let before = trainer.learner().policy_params();
+    let stop = AtomicBool::new(false);
+    let mut steps = Vec::new();
+    while let Some(epoch) = trainer.epoch(&stop, &mut |_| {}).expect("finite") {
+        assert!(epoch.row.kl.is_finite() && epoch.update.proximal.is_some());
+        steps.push(epoch.row.env_steps);
+    }
+    assert_eq!(steps, vec![100, 200]);
+    assert_ne!(
+        trainer.learner().policy_params(),
+        before,
+        "the policy learned"
+    );
+}
