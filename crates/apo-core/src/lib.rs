@@ -35,6 +35,7 @@ pub mod policy;
 pub mod proximal;
 pub mod tensor_batch;
 pub mod trust_region;
+mod validate;
 pub mod value;
 mod value_fit;
 

@@ -8,11 +8,11 @@ use rand::seq::SliceRandom;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::algorithm::{check, ConfigError};
 use crate::flat::to_host;
 use crate::objective::Objective;
 use crate::policy::Policy;
 use crate::tensor_batch::TensorBatch;
+use crate::validate::{check, ConfigError};
 use crate::value::ValueNet;
 
 /// Settings of an Adam-based update.

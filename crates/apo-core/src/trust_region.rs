@@ -15,7 +15,6 @@ use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
 use serde::{Deserialize, Serialize};
 
-use crate::algorithm::{check, ConfigError};
 use crate::fisher::FisherOperator;
 use crate::flat::{from_host, to_host, unflatten};
 use crate::hvp::{gradient, hessian_vector_product, Autodiff2};
@@ -23,6 +22,7 @@ use crate::kernels::Kernels;
 use crate::objective::Objective;
 use crate::policy::{Policy, PolicyFamily};
 use crate::tensor_batch::TensorBatch;
+use crate::validate::{check, ConfigError};
 
 /// Settings of the trust-region step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -57,7 +57,7 @@ impl Default for TrustRegionConfig {
 impl TrustRegionConfig {
     /// Checks every field's range; errors name the field as `trust_region.<field>`.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let finite_nonneg = crate::algorithm::finite_nonneg;
+        let finite_nonneg = crate::validate::finite_nonneg;
         check(
             self.max_kl.is_finite() && self.max_kl > 0.0,
             "trust_region.max_kl",

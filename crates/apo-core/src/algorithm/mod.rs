@@ -28,6 +28,8 @@ use serde::{Deserialize, Serialize};
 use crate::objective::{ApoParams, HMax, Objective};
 use crate::proximal::ProximalConfig;
 use crate::trust_region::TrustRegionConfig;
+pub use crate::validate::ConfigError;
+pub(crate) use crate::validate::{check, finite_nonneg};
 
 pub use a2c::A2cConfig;
 pub use apo::ApoConfig;
@@ -38,41 +40,6 @@ pub use trpo::TrpoConfig;
 /// The probability factor `k` of the reported bound `J − k·Var` for algorithms that have none
 /// of their own (the paper's `k`).
 pub const PAPER_PROBABILITY_FACTOR: f64 = 7.0;
-
-/// An invalid hyperparameter: names the field, its value and the rule it breaks.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("invalid `{field}` = {value}: {rule}")]
-pub struct ConfigError {
-    /// The field's path, e.g. `trust_region.max_kl`.
-    pub field: String,
-    /// The offending value, as written.
-    pub value: String,
-    /// What the value must satisfy.
-    pub rule: String,
-}
-
-/// `Ok` when `ok`, else the [`ConfigError`] of `field` = `value` breaking `rule`.
-pub(crate) fn check(
-    ok: bool,
-    field: &str,
-    value: impl fmt::Display,
-    rule: &str,
-) -> Result<(), ConfigError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(ConfigError {
-            field: field.into(),
-            value: value.to_string(),
-            rule: rule.into(),
-        })
-    }
-}
-
-/// Whether `x` is finite and ≥ 0.
-pub(crate) fn finite_nonneg(x: f64) -> bool {
-    x.is_finite() && x >= 0.0
-}
 
 /// The policy update of an algorithm.
 #[derive(Debug, Clone, Copy, PartialEq)]
