@@ -15,5 +15,5 @@ pub use env::{Action, Env, StepInfo, Transition};
 pub use error::EnvError;
 pub use registry::{list, make, register, EnvSpec, Family};
 pub use space::Space;
-pub use vector::{VecEnv, VecStep};
+pub use vector::{SerialVecEnv, ThreadedVecEnv, VecEnv, VecStep, VectorEnv};
 pub use wrappers::{NormalizeObservation, RescaleAction, RunningMeanStd, TimeLimit};
