@@ -784,8 +784,11 @@ mod tests {
 
     #[test]
     fn shipped_configs_are_the_paper_defaults() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
-        for &algo in Algorithm::ALL {
+        let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
+        for (dir, &algo) in [configs.clone(), configs.join("guard")]
+            .iter()
+            .flat_map(|dir| Algorithm::ALL.iter().map(move |a| (dir, a)))
+        {
             let file = dir.join(format!("{algo}.toml"));
             assert_eq!(
                 file_algorithm(&file).ok().flatten(),

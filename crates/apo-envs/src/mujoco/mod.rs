@@ -9,6 +9,7 @@
 //!   [`crate::registry`] as `Hopper-v4` etc. (`Hopper` resolves too), in the family `mujoco`.
 //!   Their MJCF models are this project's own, embedded. Another crate registers its own
 //!   tasks with [`Family::add_task`], whose sizes are the task's constants.
+//! - [`guard`]: the GUARD suites (`Goal_Point` … `Chase_Walker`), in the family `guard`.
 //! - [`steps_per_second`], [`vector_steps_per_second`]: the `apo bench env` measurements.
 //!
 //! See `docs/mujoco.md` for the design, the Send/Sync story and the benchmarks.
@@ -24,6 +25,7 @@ mod error;
     clippy::all
 )]
 mod ffi;
+pub mod guard;
 mod library;
 mod model;
 pub mod tasks;

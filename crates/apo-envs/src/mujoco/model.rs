@@ -354,6 +354,39 @@ impl Model {
         all.get(id * nq..(id + 1) * nq)
     }
 
+    /// Body frame positions relative to the parent body (`[nbody][3]`).
+    pub fn body_pos(&self) -> &[[f64; 3]] {
+        // SAFETY: body_pos has nbody*3 entries.
+        unsafe { slice(self.raw().body_pos.cast::<[f64; 3]>(), self.nbody()) }
+    }
+
+    /// Body frame orientations relative to the parent body, as unit quaternions `(w, x, y, z)`
+    /// (`[nbody][4]`).
+    pub fn body_quat(&self) -> &[[f64; 4]] {
+        // SAFETY: body_quat has nbody*4 entries.
+        unsafe { slice(self.raw().body_quat.cast::<[f64; 4]>(), self.nbody()) }
+    }
+
+    /// Places body `id` at `pos` with orientation `quat` (a unit quaternion `(w, x, y, z)`)
+    /// relative to its parent: what editing the MJCF's `pos` and `quat` and compiling again
+    /// would give, without compiling. Takes effect at the next `mj_forward`/`mj_step` of the
+    /// model's data. Returns `false` (and changes nothing) if `id` is out of range.
+    ///
+    /// Only a model nothing else shares can be edited: see [`Data::model_mut`].
+    pub fn set_body_pose(&mut self, id: usize, pos: [f64; 3], quat: [f64; 4]) -> bool {
+        if id >= self.nbody() {
+            return false;
+        }
+        // SAFETY: body_pos (nbody*3) and body_quat (nbody*4) are arrays of this model, `id` is
+        // in range, and `&mut self` guarantees nothing reads the model meanwhile.
+        unsafe {
+            let raw = self.raw.as_mut();
+            slice_mut(raw.body_pos.cast::<[f64; 3]>(), size(raw.nbody))[id] = pos;
+            slice_mut(raw.body_quat.cast::<[f64; 4]>(), size(raw.nbody))[id] = quat;
+        }
+        true
+    }
+
     /// The id of the object of `kind` named `name` (`mj_name2id`).
     pub fn id(&self, kind: ObjKind, name: &str) -> Result<usize, MujocoError> {
         let unknown = || MujocoError::UnknownName {
@@ -469,6 +502,12 @@ impl Data {
         &self.model
     }
 
+    /// The model, writable, when this data is its only holder (a model built for one
+    /// environment with `Data::new(Arc::new(model))`); `None` when it is shared.
+    pub fn model_mut(&mut self) -> Option<&mut Model> {
+        Arc::get_mut(&mut self.model)
+    }
+
     fn raw(&self) -> &mjData {
         // SAFETY: `raw` points to a live mjData owned by `self`.
         unsafe { self.raw.as_ref() }
@@ -570,6 +609,25 @@ impl Data {
     pub fn xpos(&self) -> &[[f64; 3]] {
         // SAFETY: xpos has nbody*3 entries.
         unsafe { slice(self.raw().xpos.cast::<[f64; 3]>(), self.model.nbody()) }
+    }
+
+    /// Body frame orientations in world coordinates, as row-major rotation matrices
+    /// (`[nbody][9]`): a vector `v` in the body's frame is `R · v` in the world's.
+    pub fn xmat(&self) -> &[[f64; 9]] {
+        // SAFETY: xmat has nbody*9 entries.
+        unsafe { slice(self.raw().xmat.cast::<[f64; 9]>(), self.model.nbody()) }
+    }
+
+    /// External forces and torques applied to each body's centre of mass in world
+    /// coordinates, force first (`[nbody][6]`), writable; MuJoCo keeps them until changed.
+    pub fn xfrc_applied_mut(&mut self) -> &mut [[f64; 6]] {
+        // SAFETY: xfrc_applied has nbody*6 entries and `self` is borrowed exclusively.
+        unsafe {
+            slice_mut(
+                self.raw.as_ref().xfrc_applied.cast::<[f64; 6]>(),
+                self.model.nbody(),
+            )
+        }
     }
 
     /// Body centre-of-mass positions in world coordinates (`[nbody][3]`).
