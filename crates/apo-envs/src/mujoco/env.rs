@@ -297,35 +297,40 @@ impl<T: Task> Env for MujocoEnv<T> {
         if T::CONTACT_FORCES {
             self.data.rne_post_constraint();
         }
-        let mut unstable =
-            self.data.unstable_warnings() != warnings || !self.data.state_is_finite();
-        let mut reward = 0.0;
-        let mut terminated = true;
-        if !unstable {
-            (reward, terminated) = self.task.reward(
+        let outcome = (!self.data.unstable_since(warnings)).then(|| {
+            self.task.reward(
                 &self.data,
                 &StepContext {
                     action,
                     before,
                     dt: self.dt,
                 },
-            );
-            unstable = !reward.is_finite();
-            terminated |= unstable;
-        }
+            )
+        });
         self.observe(obs);
-        if unstable {
-            reward = 0.0;
-            obs.iter_mut()
-                .filter(|x| !x.is_finite())
-                .for_each(|x| *x = 0.0);
-        }
-        Transition {
-            reward,
-            terminated,
-            truncated: false,
-            info: StepInfo { unstable },
-        }
+        transition(outcome, obs)
+    }
+}
+
+/// The transition of a simulated step whose reward and termination are `outcome`, `None` when
+/// the simulator became unstable during the step. An unstable step, or one with a non-finite
+/// reward, ends the episode with `info.unstable`, reward 0, and the non-finite entries of the
+/// observation `obs` (already written) set to 0.
+pub(crate) fn transition(outcome: Option<(f64, bool)>, obs: &mut [f32]) -> Transition {
+    let (reward, terminated, unstable) = match outcome {
+        Some((reward, terminated)) if reward.is_finite() => (reward, terminated, false),
+        _ => (0.0, true, true),
+    };
+    if unstable {
+        obs.iter_mut()
+            .filter(|x| !x.is_finite())
+            .for_each(|x| *x = 0.0);
+    }
+    Transition {
+        reward,
+        terminated,
+        truncated: false,
+        info: StepInfo { unstable },
     }
 }
 

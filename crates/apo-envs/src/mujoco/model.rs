@@ -738,6 +738,12 @@ impl Data {
             .sum()
     }
 
+    /// Whether the simulation can no longer be trusted: an [`Warning::UNSTABLE`] warning fired
+    /// since [`Data::unstable_warnings`] read `before`, or the state is not finite.
+    pub fn unstable_since(&self, before: u64) -> bool {
+        self.unstable_warnings() != before || !self.state_is_finite()
+    }
+
     /// Whether `qpos` and `qvel` are all finite.
     pub fn state_is_finite(&self) -> bool {
         self.qpos().iter().chain(self.qvel()).all(|x| x.is_finite())

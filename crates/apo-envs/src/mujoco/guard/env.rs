@@ -20,7 +20,8 @@ use super::sensing::{
     compass, lidar_2d, lidar_3d, LIDAR3D_AZIMUTH_BINS, LIDAR3D_ELEVATION_BINS, LIDAR_BINS,
 };
 use super::{Suite, TaskKind};
-use crate::env::{Action, Env, StepInfo, Transition};
+use crate::env::{Action, Env, Transition};
+use crate::mujoco::env::transition;
 use crate::mujoco::error::MujocoError;
 use crate::mujoco::model::{Data, Model, ObjKind};
 use crate::rng::{entropy_rng, reseed, EnvRng};
@@ -128,7 +129,7 @@ pub(crate) fn observation_dim(suite: Suite) -> usize {
 }
 
 /// The MJCF text of `suite`: the robot's model, with the ball for Push.
-fn mjcf(suite: Suite) -> String {
+pub(crate) fn mjcf(suite: Suite) -> String {
     let robot = suite.robot.mjcf();
     if suite.task != TaskKind::Push {
         return robot.to_owned();
@@ -218,7 +219,7 @@ impl GuardEnv {
     /// Builds `suite`: compiles its model (this environment's own copy) and checks that it
     /// has every sensor, body and actuator the engine reads.
     pub fn new(suite: Suite) -> Result<Self, MujocoError> {
-        let model = Model::from_xml_str(&mjcf(suite))?;
+        let model = Model::from_xml_str(&suite.mjcf())?;
         let robot = suite.robot;
         let body = |name: &str| model.id(ObjKind::Body, name);
         let joint_qpos = |name: &str| {
@@ -810,27 +811,11 @@ impl Env for GuardEnv {
             }
             self.data.step();
         }
-        let mut unstable =
-            self.data.unstable_warnings() != warnings || !self.data.state_is_finite();
-        let (mut reward, mut terminated) = (0.0, true);
-        if !unstable {
+        let outcome = (!self.data.unstable_since(warnings)).then(|| {
             self.data.forward();
-            (reward, terminated) = self.reward();
-            unstable = !reward.is_finite();
-            terminated |= unstable;
-        }
+            self.reward()
+        });
         self.observe(obs);
-        if unstable {
-            reward = 0.0;
-            obs.iter_mut()
-                .filter(|x| !x.is_finite())
-                .for_each(|x| *x = 0.0);
-        }
-        Transition {
-            reward,
-            terminated,
-            truncated: false,
-            info: StepInfo { unstable },
-        }
+        transition(outcome, obs)
     }
 }

@@ -82,6 +82,12 @@ impl Suite {
     pub fn observation_dim(self) -> usize {
         env::observation_dim(self)
     }
+
+    /// The MJCF text of the suite's model: the robot's file, with the ball for Push (to look at
+    /// it in MuJoCo's `simulate`, or to time it with `mujoco-testspeed`).
+    pub fn mjcf(self) -> String {
+        env::mjcf(self)
+    }
 }
 
 /// The 17 suites of the task × robot grid, task-major.
