@@ -157,6 +157,49 @@ pub enum ConfigFileError {
     Range(#[from] apo_core::ConfigError),
 }
 
+/// A named set of settings between the defaults and a config file: defaults, then the
+/// preset, then `--config`, then `--set`. Each of its settings is also a config key of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Preset {
+    /// The paper's published code where it differs from our defaults (docs/algorithms.md,
+    /// "The paper preset"): conjugate gradient of 100 iterations without damping, stopping
+    /// at a residual norm of 1e-8, and `1e-8` added to `xᵀFx`; raw Gaussian actions; A2C's
+    /// single policy step; on the Gym MuJoCo tasks, no bootstrap at the time limit and every
+    /// episode reset with the run's seed.
+    Paper,
+}
+
+impl Preset {
+    /// The preset's settings for a run of `algo` on the environment `env`, as `(key, value)`
+    /// with `algo.<key>` meaning the run's algorithm section; keys the algorithm does not have
+    /// (a proximal method's `trust_region`) are left out.
+    pub fn settings(self, algo: Algorithm, env: &str) -> Vec<(&'static str, toml::Value)> {
+        use toml::Value::{Boolean, Float, Integer, String as Text};
+        match self {
+            Preset::Paper => {
+                let gym_mujoco =
+                    apo_envs::registry::spec(env).is_ok_and(|spec| spec.family == "mujoco");
+                let mut settings = vec![
+                    ("algo.trust_region.cg_iters", Integer(100)),
+                    ("algo.trust_region.cg_damping", Float(0.0)),
+                    // the reference stops when the residual norm is below 1e-8
+                    ("algo.trust_region.cg_residual_tol", Float(1e-16)),
+                    ("algo.trust_region.step_epsilon", Float(1e-8)),
+                    ("actions", Text("raw".into())),
+                ];
+                if algo == Algorithm::A2c {
+                    settings.push(("algo.policy_update.iters", Integer(1)));
+                }
+                if gym_mujoco {
+                    settings.push(("bootstrap_time_limit", Boolean(false)));
+                    settings.push(("episode_reset", Text("run_seed".into())));
+                }
+                settings
+            }
+        }
+    }
+}
+
 impl RunConfig {
     /// The paper's defaults for `algo` on `env`, on the cpu backend.
     pub fn defaults(algo: Algorithm, env: &str) -> Self {
@@ -176,7 +219,24 @@ impl RunConfig {
         file: Option<&Path>,
         sets: &[String],
     ) -> Result<Self, ConfigFileError> {
+        Self::build_with_preset(algo, env, None, file, sets)
+    }
+
+    /// [`RunConfig::build`] with `preset`'s settings layered between the defaults and `file`.
+    pub fn build_with_preset(
+        algo: Algorithm,
+        env: &str,
+        preset: Option<Preset>,
+        file: Option<&Path>,
+        sets: &[String],
+    ) -> Result<Self, ConfigFileError> {
         let mut doc = to_table(&Self::defaults(algo, env));
+        for (key, value) in preset.map(|p| p.settings(algo, env)).unwrap_or_default() {
+            let key = in_section(key, algo);
+            if has_path(&doc, &key) {
+                set_path(&mut doc, &key, value)?;
+            }
+        }
         if let Some(path) = file {
             merge(&mut doc, migrate_legacy(read_table(path)?), "")?;
         }
@@ -289,6 +349,9 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("keep_checkpoint_every", "also keep every this many epochs' checkpoint as checkpoints/epoch-<N> (`apo eval --checkpoint N`); 0 = off"),
     ("hidden", "hidden layer sizes of the policy and value MLPs, tanh (paper: [64, 64]); 1..=64 layers of 1..=1048576"),
     ("init_log_std", "initial state-independent log standard deviation of Gaussian policies; [-20, 2]"),
+    ("bootstrap_time_limit", "bootstrap episodes cut by the time limit from V(final observation); false: from 0, as the paper's code on Gym MuJoCo; true/false"),
+    ("actions", "how Gaussian actions reach the environment: \"rescale\" (policy acts in [-1, 1], mapped to the box and clipped) or \"raw\" (unscaled, unclipped, as the paper's code)"),
+    ("episode_reset", "how episodes start: \"epoch\" (each epoch reseeds from the run's seed, later episodes continue the stream) or \"run_seed\" (every episode reset with the run's seed, as the paper's code on Gym MuJoCo)"),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];
 

@@ -36,7 +36,12 @@ pub fn evaluate(
 ) -> anyhow::Result<(EvalResult, usize)> {
     let config = RunConfig::load(&run_dir.join("config.toml"))
         .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
-    let mut env = apo_envs::make(&config.train.env)?;
+    // the run's action mapping, but episodes seeded by the evaluation's own seeds
+    let options = apo_envs::MakeOptions {
+        fixed_reset_seed: None,
+        ..config.train.make_options()
+    };
+    let mut env = apo_envs::make_with(&config.train.env, &options)?;
     let obs_dim = env.observation_space().flat_dim();
     let action = action_kind(env.action_space());
     let (policy_cfg, value_cfg) = (

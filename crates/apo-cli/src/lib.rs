@@ -8,8 +8,10 @@ pub mod config;
 pub mod eval;
 pub mod plot;
 pub mod progress;
+pub mod report;
 pub mod run_dir;
 pub mod summary;
+pub mod sweep;
 pub mod tensorboard;
 pub mod trainer;
 

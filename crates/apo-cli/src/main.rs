@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context};
 use apo_cli::checkpoint::Which;
-use apo_cli::config::{BackendKind, KernelsKind, RunConfig};
+use apo_cli::config::{BackendKind, KernelsKind, Preset, RunConfig};
 use apo_cli::progress::ProgressRow;
 use apo_cli::run_dir::{self, NewRunDir, RunLock};
 use apo_cli::trainer::{self, Observer, TrainEnd};
@@ -64,11 +64,14 @@ enum Command {
         /// TOML config file layered over the defaults.
         #[arg(long)]
         config: Option<PathBuf>,
+        /// Settings layered over the defaults, under --config and --set.
+        #[arg(long, value_enum)]
+        preset: Option<Preset>,
         /// Override a config key, e.g. --set algo.k=5 (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         sets: Vec<String>,
         /// Print this run directory's config instead.
-        #[arg(long, conflicts_with_all = ["env", "config", "sets"])]
+        #[arg(long, conflicts_with_all = ["env", "config", "preset", "sets"])]
         run: Option<PathBuf>,
     },
     /// List environments and algorithms.
@@ -97,9 +100,89 @@ enum Command {
         #[arg(long)]
         csv: bool,
     },
+    /// The paper's metrics per environment and algorithm, mean ± std over seeds: average mean
+    /// and worst return over all and the last N epochs, the bound and its confidence, the
+    /// TRPO-normalized scores, the count of "best" per metric; Markdown on stdout, and with
+    /// --out also report.md, report.csv and learning curves (mean ± std over seeds).
+    Report {
+        /// Run directories, or folders of runs (a sweep's); seeds of one setting are grouped
+        /// by environment, algorithm and the directory name without `-s<seed>`.
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// N of "the last N epochs" (paper: 20 continuous, 100 Atari).
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
+        last: u64,
+        /// Folder for report.md, report.csv and curves-<env>.<image>.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Episodes of the random policy that the scores are normalized by.
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        random_episodes: u64,
+        /// Image format of the curves.
+        #[arg(long, value_parser = ["png", "svg"], default_value = "png")]
+        image: String,
+        /// Moving average of the curves over this many epochs (1: none).
+        #[arg(long, default_value_t = 1)]
+        smooth: usize,
+    },
+    /// Run a grid of config values × seeds × algorithms × environments, each a separate run
+    /// under one directory, several at once; run it again to resume (finished runs are
+    /// skipped, interrupted ones resumed). Ends with each cell's metric over its seeds.
+    Sweep(SweepArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+#[derive(clap::Args)]
+struct SweepArgs {
+    /// Algorithms, comma-separated (e.g. apo,trpo).
+    #[arg(long, value_delimiter = ',', required = true)]
+    algo: Vec<String>,
+    /// Environments, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    env: Vec<String>,
+    /// Seeds: a list (0,1,2) or a range (0..5, end excluded).
+    #[arg(long, default_value = "0..3")]
+    seeds: String,
+    /// A grid axis, key=v1,v2,… (repeatable; axes multiply). An axis applies to the
+    /// algorithms that have the key.
+    #[arg(long = "grid", value_name = "KEY=V1,V2,…")]
+    grid: Vec<String>,
+    /// The sweep's directory (runs are <env>-<algo>[-<key>=<value>…]-s<seed> inside it).
+    #[arg(long)]
+    out: PathBuf,
+    /// Epochs of every run.
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
+    epochs: u64,
+    /// Environment steps per epoch of every run [default: the config's].
+    #[arg(long)]
+    steps_per_epoch: Option<usize>,
+    /// Preset of every run.
+    #[arg(long, value_enum)]
+    preset: Option<Preset>,
+    /// Config file of every run (its algorithm section is ignored for other algorithms: give
+    /// one algorithm with a config file).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Override a config key in every run (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+    /// Runs at once.
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=256))]
+    jobs: usize,
+    /// Threads of each run (0: the cores available divided by --jobs).
+    #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+    threads: usize,
+    /// Metric that ranks the cells.
+    #[arg(long, value_enum, default_value_t = apo_cli::sweep::Metric::WorstLast)]
+    metric: apo_cli::sweep::Metric,
+    /// N of "the last N epochs".
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
+    last: u64,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Subcommand)]
@@ -201,6 +284,10 @@ struct TrainArgs {
     /// TOML config file (keys as in a run's config.toml or `apo config`; defaults fill the rest).
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Settings layered over the defaults, under --config and --set: `paper` reproduces the
+    /// paper's published code (`apo config --preset paper` shows them).
+    #[arg(long, value_enum)]
+    preset: Option<Preset>,
     /// Seed [config: seed; default 0; 0..=9223372036854775807].
     #[arg(long, value_parser = clap::value_parser!(u64).range(0..=i64::MAX as u64))]
     seed: Option<u64>,
@@ -227,7 +314,7 @@ struct TrainArgs {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
     /// Continue the run in this directory from its last checkpoint (--epochs may extend it).
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["algo", "env", "config", "out", "force"])]
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["algo", "env", "config", "preset", "out", "force"])]
     resume: Option<PathBuf>,
     /// Replace an existing run directory (only one apo made; other files in it are kept).
     #[arg(long)]
@@ -285,15 +372,33 @@ fn main() -> ExitCode {
             algo,
             env,
             config,
+            preset,
             sets,
             run,
-        } => print_config(algo, env, config, &sets, run).map(|()| ExitCode::SUCCESS),
+        } => print_config(algo, env, preset, config, &sets, run).map(|()| ExitCode::SUCCESS),
         Command::Plot { runs, out, smooth } => {
             apo_cli::plot::plot(&runs, &out, &apo_cli::plot::PlotOptions { smooth })
                 .map(|()| println!("wrote {}", out.display()))
                 .map(|()| ExitCode::SUCCESS)
         }
         Command::Bench(command) => bench(command).map(|()| ExitCode::SUCCESS),
+        Command::Sweep(args) => sweep(args),
+        Command::Report {
+            runs,
+            last,
+            out,
+            random_episodes,
+            image,
+            smooth,
+        } => report(
+            &runs,
+            last as usize,
+            out.as_deref(),
+            random_episodes as usize,
+            &image,
+            smooth,
+        )
+        .map(|()| ExitCode::SUCCESS),
         Command::Summary { runs, last, csv } => {
             summary(&runs, last as usize, csv).map(|()| ExitCode::SUCCESS)
         }
@@ -339,9 +444,167 @@ fn summary(runs: &[PathBuf], last: usize, csv: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
+fn report(
+    paths: &[PathBuf],
+    last: usize,
+    out: Option<&Path>,
+    random_episodes: usize,
+    image: &str,
+    smooth: usize,
+) -> anyhow::Result<()> {
+    use apo_cli::report;
+    let runs = report::find_runs(paths)?;
+    let report = report::report(&runs, last, &mut |env| {
+        report::random_baseline(env, random_episodes, 0)
+    })?;
+    print!("{}", report::markdown(&report));
+    if let Some(out) = out {
+        for path in report::write(&report, out, image, smooth)? {
+            eprintln!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}
+
+/// Parses `--seeds`: `0,1,2` or `0..5`.
+fn parse_seeds(text: &str) -> anyhow::Result<Vec<u64>> {
+    let bad = || format!("--seeds expects a list (0,1,2) or a range (0..5), got `{text}`");
+    let seeds: Vec<u64> = match text.split_once("..") {
+        Some((a, b)) => {
+            let (a, b): (u64, u64) = (
+                a.trim().parse().with_context(bad)?,
+                b.trim().parse().with_context(bad)?,
+            );
+            (a..b).collect()
+        }
+        None => text
+            .split(',')
+            .map(|s| s.trim().parse::<u64>())
+            .collect::<Result<_, _>>()
+            .with_context(bad)?,
+    };
+    if seeds.is_empty() || seeds.iter().any(|&s| s > i64::MAX as u64) {
+        bail!("{}", bad());
+    }
+    Ok(seeds)
+}
+
+fn sweep(args: SweepArgs) -> anyhow::Result<ExitCode> {
+    use apo_cli::sweep;
+    let spec = sweep::SweepSpec {
+        envs: args.env.clone(),
+        algos: args.algo.clone(),
+        seeds: parse_seeds(&args.seeds)?,
+        grid: args
+            .grid
+            .iter()
+            .map(|g| sweep::Axis::parse(g))
+            .collect::<anyhow::Result<_>>()?,
+        preset: args
+            .preset
+            .and_then(|p| clap::ValueEnum::to_possible_value(&p))
+            .map(|v| v.get_name().to_string()),
+        config: args.config.clone(),
+        sets: args.sets.clone(),
+        steps_per_epoch: args.steps_per_epoch,
+    };
+    let runs = sweep::expand(&spec)?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let options = sweep::SweepOptions {
+        out: args.out.clone(),
+        epochs: args.epochs as usize,
+        jobs: args.jobs,
+        threads: if args.threads == 0 {
+            (cores / args.jobs).max(1)
+        } else {
+            args.threads
+        },
+    };
+    let exe = std::env::current_exe().context("locating the apo executable")?;
+    let signals = Signals::install()?;
+    let total = runs.len() as u64 * args.epochs;
+    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = ProgressBar::new(total);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} epochs  runs {msg}  {elapsed_precise} (eta {eta})",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let run_count = runs.len();
+    let mut tick = |epochs: usize, done: usize| {
+        if let Some(bar) = &bar {
+            bar.set_position(epochs as u64);
+            bar.set_message(format!("{done}/{run_count}"));
+        }
+    };
+    println!(
+        "sweep: {} runs ({} environments, {} algorithms, {} seeds) in {}",
+        runs.len(),
+        spec.envs.len(),
+        spec.algos.len(),
+        spec.seeds.len(),
+        args.out.display()
+    );
+    let outcome = sweep::run(&exe, &spec, &runs, &options, &signals.stop, &mut tick)?;
+    if let Some(bar) = &bar {
+        bar.abandon();
+    }
+    let results = sweep::cell_results(&args.out, &runs, args.metric, args.last as usize);
+    let csv = sweep::cells_csv(&results);
+    let csv_path = args.out.join("cells.csv");
+    apo_cli::atomic::write(&csv_path, csv.as_bytes())?;
+    let metric = clap::ValueEnum::to_possible_value(&args.metric)
+        .map(|v| v.get_name().to_string())
+        .unwrap_or_default();
+    println!(
+        "{metric} (last {}), mean ± std over seeds; best cell first:",
+        args.last
+    );
+    let mut previous: Option<(&str, Algorithm)> = None;
+    for r in &results {
+        let best = previous != Some((r.env.as_str(), r.algo));
+        previous = Some((r.env.as_str(), r.algo));
+        println!(
+            "{} {:<12} {:<6} {:<40} {:>10.2} ± {:<8.2} ({} seeds)",
+            if best { "*" } else { " " },
+            r.env,
+            r.algo.name(),
+            r.cell,
+            r.mean,
+            r.std,
+            r.seeds
+        );
+    }
+    println!(
+        "finished {} (skipped {} finished before), failed {}; cells: {}",
+        outcome.finished,
+        outcome.skipped,
+        outcome.failed.len(),
+        csv_path.display()
+    );
+    for (name, error) in &outcome.failed {
+        eprintln!("failed: {name}: {error}");
+    }
+    if outcome.interrupted {
+        println!("interrupted: run the same command again to resume");
+        return Ok(ExitCode::from(interrupted_status(
+            signals.which.load(Ordering::SeqCst),
+        )));
+    }
+    Ok(if outcome.failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
 fn print_config(
     algo: Algorithm,
     env: Option<String>,
+    preset: Option<Preset>,
     file: Option<PathBuf>,
     sets: &[String],
     run: Option<PathBuf>,
@@ -353,7 +616,13 @@ fn print_config(
             if let Some(env) = &env {
                 apo_envs::registry::spec(env)?;
             }
-            RunConfig::build(algo, env.as_deref().unwrap_or(""), file.as_deref(), sets)?
+            RunConfig::build_with_preset(
+                algo,
+                env.as_deref().unwrap_or(""),
+                preset,
+                file.as_deref(),
+                sets,
+            )?
         }
     };
     print!("{}", config.documented_toml());
@@ -748,7 +1017,13 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
                 .into_iter()
                 .flatten(),
             );
-            let config = RunConfig::build(algo, &env, args.config.as_deref(), &sets)?;
+            let config = RunConfig::build_with_preset(
+                algo,
+                &env,
+                args.preset,
+                args.config.as_deref(),
+                &sets,
+            )?;
             config.check_memory(
                 spec.observation_dim,
                 apo_train::action_kind(&spec.action_space),

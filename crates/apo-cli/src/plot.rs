@@ -134,10 +134,10 @@ struct Run {
     algo: &'static str,
     /// Mean return per epoch.
     mean: Series,
-    /// Worst return per epoch.
+    /// Worst return per epoch (dashed).
     min: Series,
-    /// Best return per epoch.
-    max: Series,
+    /// The band's lower and upper edges per epoch.
+    band: (Series, Series),
     /// Returns left out because they were not finite.
     skipped: usize,
     /// Environment steps after its last epoch.
@@ -162,8 +162,8 @@ impl Run {
             env: config.train.env,
             algo: config.train.algo.algorithm().name(),
             mean,
+            band: (min.clone(), max),
             min,
-            max,
             skipped: skipped_mean + skipped_min + skipped_max,
             steps: rows.iter().map(|r| r.env_steps as f64).fold(0.0, f64::max),
         })
@@ -174,8 +174,70 @@ impl Run {
         self.mean
             .iter()
             .chain(&self.min)
-            .chain(&self.max)
+            .chain(&self.band.0)
+            .chain(&self.band.1)
             .map(|&(_, y)| y)
+    }
+
+    /// The runs in `dirs` (seeds of one setting) as one curve set labelled `label`: per
+    /// epoch, the mean over seeds of the mean return with a band of ± their standard
+    /// deviation, and the mean over seeds of the worst return. An epoch counts the seeds
+    /// that have it and an episode in it; steps are their mean.
+    fn seeds(label: &str, dirs: &[PathBuf], smooth: usize) -> anyhow::Result<Self> {
+        let first = dirs.first().context("a group without runs")?;
+        let config = RunConfig::load(&first.join("config.toml"))
+            .with_context(|| format!("cannot plot the run in {}", first.display()))?;
+        let runs = dirs
+            .iter()
+            .map(|dir| {
+                progress::read(&dir.join("progress.csv"))
+                    .with_context(|| format!("cannot plot the run in {}", dir.display()))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let epochs = runs.iter().map(Vec::len).max().unwrap_or(0);
+        let (mut mean, mut lo, mut hi, mut min) = (vec![], vec![], vec![], vec![]);
+        let mut skipped = 0;
+        for e in 0..epochs {
+            let rows: Vec<&ProgressRow> = runs.iter().filter_map(|r| r.get(e)).collect();
+            let finite = |v: fn(&ProgressRow) -> Option<f64>| -> Vec<f64> {
+                rows.iter().filter_map(|r| v(r)).collect()
+            };
+            let (means, worst) = (finite(|r| r.ep_ret_mean), finite(|r| r.ep_ret_min));
+            let (means, bad_means): (Vec<f64>, Vec<f64>) =
+                means.into_iter().partition(|v| v.is_finite());
+            let (worst, bad_worst): (Vec<f64>, Vec<f64>) =
+                worst.into_iter().partition(|v| v.is_finite());
+            skipped += bad_means.len() + bad_worst.len();
+            let x = rows.iter().map(|r| r.env_steps as f64).sum::<f64>() / rows.len() as f64;
+            if !means.is_empty() {
+                let (m, sd) = crate::summary::mean_std(&means);
+                mean.push((x, m));
+                lo.push((x, m - sd));
+                hi.push((x, m + sd));
+            }
+            if !worst.is_empty() {
+                min.push((x, crate::summary::mean_std(&worst).0));
+            }
+        }
+        let smoothed = |series: Series| -> Series {
+            let ys: Vec<f64> = series.iter().map(|&(_, y)| y).collect();
+            series
+                .iter()
+                .map(|&(x, _)| x)
+                .zip(moving_average(&ys, smooth))
+                .collect()
+        };
+        Ok(Self {
+            dir: first.clone(),
+            label: format!("{label} ({} seeds)", dirs.len()),
+            env: config.train.env,
+            algo: config.train.algo.algorithm().name(),
+            steps: mean.last().map_or(0.0, |&(x, _)| x),
+            mean: smoothed(mean),
+            band: (smoothed(lo), smoothed(hi)),
+            min: smoothed(min),
+            skipped,
+        })
     }
 }
 
@@ -335,6 +397,7 @@ impl ReturnTicks {
 /// What the image shows.
 struct Figure<'a> {
     runs: &'a [Run],
+    key: [(&'static str, Sample); 3],
     title: String,
     subtitle: String,
     x: Range<f64>,
@@ -342,10 +405,21 @@ struct Figure<'a> {
 }
 
 impl<'a> Figure<'a> {
-    fn new(runs: &'a [Run], options: &PlotOptions) -> anyhow::Result<Self> {
+    fn new(runs: &'a [Run], options: &PlotOptions, seeds: bool) -> anyhow::Result<Self> {
         let envs = distinct(runs.iter().map(|r| r.env.as_str()));
         let algos = distinct(runs.iter().map(|r| r.algo));
-        let mut subtitle = "Episode return: mean (solid), min–max band, worst (dashed)".to_string();
+        let (mut subtitle, key) = if seeds {
+            (
+                "Episode return, over seeds: mean of the mean (solid) ± std band, mean of the worst (dashed)"
+                    .to_string(),
+                SEEDS_KEY,
+            )
+        } else {
+            (
+                "Episode return: mean (solid), min–max band, worst (dashed)".to_string(),
+                LEGEND_KEY,
+            )
+        };
         if options.smooth > 1 {
             subtitle += &format!(" · moving average over {} epochs", options.smooth);
         }
@@ -358,6 +432,7 @@ impl<'a> Figure<'a> {
         }
         Ok(Self {
             runs,
+            key,
             title: format!("{} — {}", envs.join(", "), algos.join(", ")),
             subtitle,
             x: 0.0..runs.iter().map(|r| r.steps).fold(1.0, f64::max),
@@ -388,7 +463,7 @@ impl<'a> Figure<'a> {
         let labels: Vec<&str> = self.runs.iter().map(|r| r.label.as_str()).collect();
         let widest = labels
             .iter()
-            .chain(&LEGEND_KEY.map(|(text, _)| text))
+            .chain(&self.key.map(|(text, _)| text))
             .map(|text| {
                 body.estimate_text_size(text, &font(LABEL_FONT))
                     .map(|(w, _)| w)
@@ -401,7 +476,7 @@ impl<'a> Figure<'a> {
             (widest + LEGEND_TEXT_X as u32 + 16).clamp(LEGEND_WIDTH.start, LEGEND_WIDTH.end);
         let (chart_area, legend_area) = body.split_horizontally(width - legend_width);
         self.draw_chart(&chart_area)?;
-        draw_legend(&legend_area, &labels)?;
+        draw_legend(&legend_area, &labels, &self.key)?;
         root.present()?;
         Ok(())
     }
@@ -447,9 +522,10 @@ impl<'a> Figure<'a> {
         let opacity = (0.3 / self.runs.len() as f64).clamp(0.04, 0.15);
         for (i, run) in self.runs.iter().enumerate() {
             let band: Series = run
-                .max
+                .band
+                .1
                 .iter()
-                .chain(run.min.iter().rev())
+                .chain(run.band.0.iter().rev())
                 .copied()
                 .collect();
             if band.len() > 2 {
@@ -486,6 +562,12 @@ const LEGEND_KEY: [(&str, Sample); 3] = [
     ("min–max band", Sample::Band),
     ("worst return", Sample::Dashed),
 ];
+/// The key of curves over seeds.
+const SEEDS_KEY: [(&str, Sample); 3] = [
+    ("mean return", Sample::Solid),
+    ("± std over seeds", Sample::Band),
+    ("worst return", Sample::Dashed),
+];
 /// Where the legend's texts start.
 const LEGEND_TEXT_X: i32 = 12 + SWATCH + 10;
 
@@ -501,6 +583,7 @@ enum Sample {
 fn draw_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     labels: &[&str],
+    key: &[(&str, Sample)],
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
@@ -532,7 +615,7 @@ where
     };
 
     // rows for the two headings, the key, a gap and a possible "… more" line
-    let room = (height as i32 / LEGEND_ROW - 2 - LEGEND_KEY.len() as i32 - 2).max(1) as usize;
+    let room = (height as i32 / LEGEND_ROW - 2 - key.len() as i32 - 2).max(1) as usize;
     let shown = if labels.len() > room {
         room - 1
     } else {
@@ -554,7 +637,7 @@ where
     }
     y += 2 * LEGEND_ROW;
     area.draw(&Text::new("Lines", (12, y), heading))?;
-    for (label, sample) in LEGEND_KEY {
+    for &(label, sample) in key {
         y += LEGEND_ROW;
         entry(y, label, sample, GREY)?;
     }
@@ -610,13 +693,35 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
             if run.skipped == 1 { "" } else { "s" }
         );
     }
-    let figure = Figure::new(&runs, options)?;
+    draw(&Figure::new(&runs, options, false)?, out, format)
+}
+
+fn draw(figure: &Figure<'_>, out: &Path, format: ImageFormat) -> anyhow::Result<()> {
     load_font()?;
     match format {
         ImageFormat::Png => figure.draw(BitMapBackend::new(out, SIZE).into_drawing_area()),
         ImageFormat::Svg => figure.draw(SVGBackend::new(out, SIZE).into_drawing_area()),
     }
     .with_context(|| format!("cannot draw {}", out.display()))
+}
+
+/// Plots groups of runs into `out` (`.png` or `.svg`), one curve set per group `(label,
+/// run directories)`: the mean over the group's seeds of the mean return, a band of ± the
+/// standard deviation over seeds, and the mean over seeds of the worst return.
+pub fn plot_seed_groups(
+    groups: &[(String, Vec<PathBuf>)],
+    out: &Path,
+    options: &PlotOptions,
+) -> anyhow::Result<()> {
+    if options.smooth == 0 {
+        bail!("--smooth must be at least 1 (1 = no smoothing), got 0");
+    }
+    let format = ImageFormat::of(out)?;
+    let runs = groups
+        .iter()
+        .map(|(label, dirs)| Run::seeds(label, dirs, options.smooth))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    draw(&Figure::new(&runs, options, true)?, out, format)
 }
 
 #[cfg(test)]

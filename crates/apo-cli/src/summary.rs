@@ -48,6 +48,14 @@ pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
     })
 }
 
+/// The mean and the population standard deviation of `values` (`(NaN, NaN)` when empty).
+pub fn mean_std(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    (mean, var.sqrt())
+}
+
 /// A run's values in the column order of [`table`] and [`csv`], formatted (returns with two
 /// decimals, steps/s as a whole number); `None` where the run has no episode to average.
 fn cells(s: &RunSummary) -> [Option<String>; 7] {

@@ -126,7 +126,20 @@ pub fn row_scalars(row: &ProgressRow) -> Vec<(&'static str, f64)> {
         ("bound/confidence", row.confidence),
         ("apo/mean_variance", row.mean_variance),
         ("apo/variance_mean", row.variance_mean),
+        ("apo/bias", row.bias),
+        (
+            "apo/min_j_sq_on",
+            row.min_j_sq_on.map(|on| f64::from(u8::from(on))),
+        ),
         ("update/pi_steps", row.pi_steps.map(|s| s as f64)),
+        (
+            "line_search/rejected_kl",
+            row.ls_rejected_kl.map(|n| n as f64),
+        ),
+        (
+            "line_search/rejected_objective",
+            row.ls_rejected_objective.map(|n| n as f64),
+        ),
     ];
     let always = [
         ("episode/count", row.episodes as f64),
@@ -475,6 +488,10 @@ mod tests {
             mean_variance: None,
             variance_mean: Some(2.0),
             line_search: Some("accepted:0".to_string()),
+            ls_rejected_kl: None,
+            ls_rejected_objective: None,
+            bias: None,
+            min_j_sq_on: None,
             pi_steps: None,
             unstable_episodes: 0,
             steps_per_s: 1500.0,

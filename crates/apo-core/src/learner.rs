@@ -20,7 +20,7 @@ use crate::kernels::Kernels;
 use crate::policy::{ActionKind, Policy, PolicyFamily};
 use crate::proximal::{proximal_update, value_update, ProximalReport};
 use crate::tensor_batch::TensorBatch;
-use crate::trust_region::{trust_region_step, LineSearchOutcome};
+use crate::trust_region::{trust_region_step, LineSearchOutcome, Rejections};
 use crate::value::{ValueConfig, ValueNet};
 use crate::value_fit::{host_value_update, ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 
@@ -52,6 +52,12 @@ pub struct UpdateReport {
     pub loss_v: f64,
     /// Trust-region line-search outcome (APO, TRPO).
     pub line_search: Option<LineSearchOutcome>,
+    /// The line search's rejected tries by reason (APO, TRPO).
+    pub rejections: Option<Rejections>,
+    /// `min_J_sq`'s bias at θ_{j+1} (APO/PAPO with `k > 0`).
+    pub bias: Option<f64>,
+    /// Whether `min_J_sq`'s switch is on at θ_{j+1} (APO/PAPO with `k > 0`).
+    pub min_j_sq_on: Option<bool>,
     /// Proximal step report (PAPO, PPO, A2C).
     pub proximal: Option<ProximalReport>,
     /// Wall time of the policy update (with the evaluation of the terms at θ_j), seconds.
@@ -220,7 +226,7 @@ where
         let scalar = |t: Option<burn::tensor::Tensor<B, 1>>| t.map(|t| to_host(t)[0]);
 
         let tb1 = tb.lift::<Ad<B>>();
-        let (line_search, proximal) = match self.config.settings().policy_step() {
+        let (line_search, rejections, proximal) = match self.config.settings().policy_step() {
             PolicyStep::TrustRegion(trust_region) => {
                 let report = trust_region_step(
                     &self.family,
@@ -232,7 +238,7 @@ where
                 );
                 let leaf = from_host::<Ad<B>>(&report.theta, &self.device);
                 self.policy = unflatten(self.policy.clone(), leaf);
-                (Some(report.outcome), None)
+                (Some(report.outcome), Some(report.rejections), None)
             }
             PolicyStep::Proximal(policy_update) => {
                 let policy = self.policy.clone();
@@ -245,7 +251,7 @@ where
                     rng,
                 );
                 self.policy = policy;
-                (None, Some(report))
+                (None, None, Some(report))
             }
         };
         let policy_update_s = start.elapsed().as_secs_f64();
@@ -277,13 +283,11 @@ where
         };
         let value_update_s = value_start.elapsed().as_secs_f64();
 
-        let after = self.policy_on::<B>(&self.device);
-        let kl = to_host(
-            after
-                .distribution(tb.obs.clone())
-                .kl_from(&tb.dist_old)
-                .mean(),
-        )[0];
+        let after = self
+            .policy_on::<B>(&self.device)
+            .distribution(tb.obs.clone());
+        let kl = to_host(after.kl_from(&tb.dist_old).mean())[0];
+        let terms_after = objective.evaluate(&after, &tb);
         UpdateReport {
             loss_pi: -to_host(terms.objective)[0],
             mean_surr: to_host(terms.mean_surr)[0],
@@ -293,6 +297,9 @@ where
             entropy,
             loss_v: value_report.loss_before,
             line_search,
+            rejections,
+            bias: scalar(terms_after.bias),
+            min_j_sq_on: scalar(terms_after.min_j_sq_on).map(|on| on > 0.5),
             proximal,
             policy_update_s,
             value_update_s,

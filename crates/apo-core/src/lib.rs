@@ -52,5 +52,5 @@ pub use objective::{ApoParams, HMax, Objective, ObjectiveTerms};
 pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
 pub use proximal::{ProximalConfig, ProximalReport};
 pub use tensor_batch::TensorBatch;
-pub use trust_region::{LineSearchOutcome, TrustRegionConfig, TrustRegionReport};
+pub use trust_region::{LineSearchOutcome, Rejections, TrustRegionConfig, TrustRegionReport};
 pub use value::{ValueConfig, ValueNet};

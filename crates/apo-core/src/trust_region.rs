@@ -6,7 +6,7 @@
 //! Hessian-vector products by double backward ([`crate::hvp::hessian_vector_product`]):
 //!
 //! 1. `x ≈ F⁻¹ g` by conjugate gradient;
-//! 2. the full step `Δ = sqrt(2δ / xᵀFx) · x` — the maximizer of the linearized objective
+//! 2. the full step `Δ = sqrt(2δ / (xᵀFx + step_epsilon)) · x` — the maximizer of the linearized objective
 //!    inside the quadratic trust region `½ ΔᵀFΔ ≤ δ`;
 //! 3. backtracking: try `θ_j + ξ^i Δ` for `i = 0, 1, …` (ξ = 0.8, up to 100 tries) and accept
 //!    the first with mean KL ≤ δ and objective ≥ objective(θ_j); if none, keep θ_j.
@@ -39,6 +39,10 @@ pub struct TrustRegionConfig {
     pub backtrack_coeff: f64,
     /// Maximum backtracking tries (paper: 100).
     pub backtrack_iters: usize,
+    /// Added to `xᵀFx` in the step length `sqrt(2δ / (xᵀFx + step_epsilon))` (the paper's
+    /// code: 1e-8; default 0).
+    #[serde(default)]
+    pub step_epsilon: f64,
 }
 
 impl Default for TrustRegionConfig {
@@ -50,6 +54,7 @@ impl Default for TrustRegionConfig {
             cg_residual_tol: 1e-10,
             backtrack_coeff: 0.8,
             backtrack_iters: 100,
+            step_epsilon: 0.0,
         }
     }
 }
@@ -93,6 +98,12 @@ impl TrustRegionConfig {
             "trust_region.backtrack_iters",
             self.backtrack_iters,
             "must be ≥ 1",
+        )?;
+        check(
+            finite_nonneg(self.step_epsilon),
+            "trust_region.step_epsilon",
+            self.step_epsilon,
+            "must be ≥ 0",
         )
     }
 
@@ -120,6 +131,10 @@ impl TrustRegionConfig {
             (
                 "trust_region.backtrack_iters",
                 "backtracking tries (paper: 100); ≥ 1",
+            ),
+            (
+                "trust_region.step_epsilon",
+                "added to xᵀFx in the step length sqrt(2δ / (xᵀFx + ε)) (the paper's code: 1e-8); ≥ 0",
             ),
         ]
         .map(|(k, d)| (k.to_string(), d))
@@ -221,6 +236,17 @@ pub struct TrustRegionReport {
     pub cg_iterations: usize,
     /// CG's final squared residual.
     pub cg_residual_sq: f64,
+    /// Why the tries before the returned one were rejected.
+    pub rejections: Rejections,
+}
+
+/// The line search's rejected tries, by the first condition each failed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Rejections {
+    /// Tries whose mean KL exceeded δ.
+    pub kl: usize,
+    /// Tries inside the KL radius whose objective was below objective(θ_j).
+    pub objective: usize,
 }
 
 /// Mean KL(π_j ‖ π_θ) and the objective at `theta`, without gradients.
@@ -283,7 +309,7 @@ where
     };
     let cg = conjugate_gradient(&fvp, &g, config.cg_iters, config.cg_residual_tol);
     let x_fx = dot(&cg.x, &fvp(&cg.x));
-    let no_step = |full_step: Vec<f64>, outcome| TrustRegionReport {
+    let no_step = |full_step: Vec<f64>, outcome, rejections| TrustRegionReport {
         theta: theta.to_vec(),
         full_step,
         outcome,
@@ -292,14 +318,21 @@ where
         kl: 0.0,
         cg_iterations: cg.iterations,
         cg_residual_sq: cg.residual_sq,
+        rejections,
     };
-    if !(x_fx > 0.0 && x_fx.is_finite()) {
-        return no_step(vec![0.0; theta.len()], LineSearchOutcome::NoStep);
+    let denominator = x_fx + config.step_epsilon;
+    if !(denominator > 0.0 && denominator.is_finite()) {
+        return no_step(
+            vec![0.0; theta.len()],
+            LineSearchOutcome::NoStep,
+            Rejections::default(),
+        );
     }
-    let scale = (2.0 * config.max_kl / x_fx).sqrt();
+    let scale = (2.0 * config.max_kl / denominator).sqrt();
     let full_step: Vec<f64> = cg.x.iter().map(|xi| scale * xi).collect();
 
     let mut fraction = 1.0;
+    let mut rejections = Rejections::default();
     for r#try in 0..config.backtrack_iters {
         let candidate: Vec<f64> = theta
             .iter()
@@ -317,9 +350,15 @@ where
                 kl,
                 cg_iterations: cg.iterations,
                 cg_residual_sq: cg.residual_sq,
+                rejections,
             };
+        }
+        if kl > config.max_kl {
+            rejections.kl += 1;
+        } else {
+            rejections.objective += 1;
         }
         fraction *= config.backtrack_coeff;
     }
-    no_step(full_step, LineSearchOutcome::Rejected)
+    no_step(full_step, LineSearchOutcome::Rejected, rejections)
 }

@@ -8,8 +8,9 @@ use std::sync::{Arc, OnceLock};
 
 use crate::env::Env;
 use crate::error::EnvError;
+use crate::registry::MakeOptions;
 use crate::space::Space;
-use crate::wrappers::{RescaleAction, TimeLimit};
+use crate::wrappers::{FixedReset, RescaleAction, TimeLimit};
 
 /// A builder of a bare environment: no time limit, actions in the environment's own bounds.
 pub(crate) type Build = dyn Fn() -> Result<Box<dyn Env>, EnvError> + Send + Sync;
@@ -69,9 +70,18 @@ impl Member {
         Ok((env, spaces))
     }
 
-    /// The environment with [`RescaleAction`] (box actions) and [`TimeLimit`].
-    pub(crate) fn make(&self) -> Result<Box<dyn Env>, EnvError> {
-        let (env, _) = self.build_for_policy()?;
+    /// The environment with [`RescaleAction`] (box actions, unless `options` say not),
+    /// [`FixedReset`] (if `options` ask for it) and [`TimeLimit`].
+    pub(crate) fn make(&self, options: &MakeOptions) -> Result<Box<dyn Env>, EnvError> {
+        let env = if options.rescale_actions {
+            self.build_for_policy()?.0
+        } else {
+            (self.build)()?
+        };
+        let env: Box<dyn Env> = match options.fixed_reset_seed {
+            Some(seed) => Box::new(FixedReset::new(env, seed)),
+            None => env,
+        };
         Ok(Box::new(TimeLimit::new(env, self.max_episode_steps)))
     }
 

@@ -13,7 +13,7 @@ pub mod wrappers;
 
 pub use env::{Action, Env, StepInfo, Transition};
 pub use error::EnvError;
-pub use registry::{list, make, register, EnvSpec, Family};
+pub use registry::{list, make, make_with, register, EnvSpec, Family, MakeOptions};
 pub use space::Space;
 pub use vector::{SerialVecEnv, ThreadedVecEnv, VecEnv, VecStep, VectorEnv};
-pub use wrappers::{NormalizeObservation, RescaleAction, RunningMeanStd, TimeLimit};
+pub use wrappers::{FixedReset, NormalizeObservation, RescaleAction, RunningMeanStd, TimeLimit};

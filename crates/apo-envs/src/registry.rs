@@ -227,7 +227,39 @@ pub fn spec(name: &str) -> Result<EnvSpec, EnvError> {
 /// (for example [`EnvError::Init`]) if it fails; [`EnvError::UnsupportedSpace`] if its action
 /// box has infinite bounds.
 pub fn make(name: &str) -> Result<Box<dyn Env>, EnvError> {
-    lookup(name)?.make()
+    make_with(name, &MakeOptions::default())
+}
+
+/// How [`make_with`] builds an environment, beyond [`make`]'s defaults.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MakeOptions {
+    /// Wrap box action spaces in [`RescaleAction`](crate::RescaleAction) (default). Without
+    /// it the policy's actions reach the environment as they are: in its own bounds,
+    /// unclipped (a MuJoCo task clamps the controls, but its control cost sees the raw action).
+    pub rescale_actions: bool,
+    /// Reset every episode with this seed ([`FixedReset`](crate::FixedReset)), so that all
+    /// episodes start from the same state; `None` (default): seeds as the caller passes them.
+    pub fixed_reset_seed: Option<u64>,
+}
+
+impl Default for MakeOptions {
+    fn default() -> Self {
+        Self {
+            rescale_actions: true,
+            fixed_reset_seed: None,
+        }
+    }
+}
+
+/// [`make`] with `options`: the bare environment, inside [`RescaleAction`](crate::RescaleAction)
+/// if its actions are a box and `options.rescale_actions`, inside
+/// [`FixedReset`](crate::FixedReset) if `options.fixed_reset_seed` is set, inside
+/// [`TimeLimit`](crate::TimeLimit).
+///
+/// # Errors
+/// Those of [`make`].
+pub fn make_with(name: &str, options: &MakeOptions) -> Result<Box<dyn Env>, EnvError> {
+    lookup(name)?.make(options)
 }
 
 // `VecEnv::make` is defined here, beside `make`, so that `vector` does not depend on the
@@ -239,8 +271,17 @@ impl VecEnv {
     /// # Errors
     /// Those of [`registry::make`](crate::registry::make), and [`EnvError::EmptyVector`] if `num_envs == 0`.
     pub fn make(name: &str, num_envs: usize) -> Result<Self, EnvError> {
+        Self::make_with(name, num_envs, &MakeOptions::default())
+    }
+
+    /// `num_envs` copies of the registered environment `name`, built by
+    /// [`registry::make_with`](crate::registry::make_with).
+    ///
+    /// # Errors
+    /// Those of [`VecEnv::make`].
+    pub fn make_with(name: &str, num_envs: usize, options: &MakeOptions) -> Result<Self, EnvError> {
         let envs = (0..num_envs)
-            .map(|_| make(name))
+            .map(|_| make_with(name, options))
             .collect::<Result<Vec<_>, _>>()?;
         Self::new(envs)
     }

@@ -3,6 +3,7 @@
 //! - [`TimeLimit`] truncates episodes after a number of steps.
 //! - [`RescaleAction`] lets the policy act in `[-1, 1]^d` whatever the box bounds.
 //! - [`NormalizeObservation`] standardizes observations with a [`RunningMeanStd`].
+//! - [`FixedReset`] starts every episode from the same seed.
 //!
 //! [`RunningMeanStd`] is also meant to be used directly on a vector of environments
 //! (`[n, dim]` batches), and it serializes, so a checkpoint can save and restore it.
@@ -67,6 +68,40 @@ impl<E: Env> Env for TimeLimit<E> {
             transition.truncated = true;
         }
         transition
+    }
+}
+
+/// Resets the wrapped environment with the same seed at every reset, whatever seed the
+/// caller passes (or none): every episode starts from the same initial state, as the
+/// paper's published code did on the Gym MuJoCo tasks (`env.reset(seed=seed)` per episode).
+#[derive(Debug, Clone)]
+pub struct FixedReset<E> {
+    env: E,
+    seed: u64,
+}
+
+impl<E: Env> FixedReset<E> {
+    /// Wraps `env`; every reset uses `seed`.
+    pub fn new(env: E, seed: u64) -> Self {
+        Self { env, seed }
+    }
+}
+
+impl<E: Env> Env for FixedReset<E> {
+    fn observation_space(&self) -> &Space {
+        self.env.observation_space()
+    }
+
+    fn action_space(&self) -> &Space {
+        self.env.action_space()
+    }
+
+    fn reset(&mut self, _seed: Option<u64>, obs: &mut [f32]) {
+        self.env.reset(Some(self.seed), obs);
+    }
+
+    fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
+        self.env.step(action, obs)
     }
 }
 

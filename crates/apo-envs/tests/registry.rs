@@ -479,3 +479,58 @@ fn boxes_carry_a_shape() {
         Space::box_with_shape(vec![-1.0; 6], vec![1.0; 6], vec![3, 2]).expect("6 bounds")
     );
 }
+
+#[test]
+fn make_with_raw_actions_and_a_fixed_reset_seed() {
+    use apo_envs::MakeOptions;
+    // raw actions: Pendulum's own box [-2, 2], and an action of 2 is a torque of 2
+    let raw = MakeOptions {
+        rescale_actions: false,
+        fixed_reset_seed: None,
+    };
+    let mut env = registry::make_with("Pendulum-v1", &raw).expect("pendulum");
+    assert_eq!(env.action_space(), &Space::uniform_box(1, -2.0, 2.0));
+    let mut rescaled = registry::make("Pendulum-v1").expect("pendulum");
+    assert_eq!(rescaled.action_space(), &Space::uniform_box(1, -1.0, 1.0));
+    let (mut a, mut b) = ([0.0f32; 3], [0.0f32; 3]);
+    env.reset(Some(3), &mut a);
+    rescaled.reset(Some(3), &mut b);
+    assert_eq!(a, b);
+    let raw_step = env.step(Action::Continuous(&[2.0]), &mut a);
+    let rescaled_step = rescaled.step(Action::Continuous(&[1.0]), &mut b);
+    assert_eq!(a, b, "torque 2 either way");
+    assert_eq!(raw_step.reward, rescaled_step.reward);
+    // beyond the box, on a MuJoCo task: the simulator clamps the control either way, but the
+    // control cost sees the raw action (Hopper: 1e-3 · Σa²)
+    let mut raw_hopper = registry::make_with("Hopper-v4", &raw).expect("hopper");
+    let mut hopper = registry::make("Hopper-v4").expect("hopper");
+    let (mut a, mut b) = ([0.0f32; 11], [0.0f32; 11]);
+    raw_hopper.reset(Some(3), &mut a);
+    hopper.reset(Some(3), &mut b);
+    let far = raw_hopper.step(Action::Continuous(&[3.0, 3.0, 3.0]), &mut a);
+    let clipped = hopper.step(Action::Continuous(&[1.5, 1.5, 1.5]), &mut b);
+    assert_eq!(a, b, "the controls are clamped to [-1, 1] either way");
+    let cost_gap = clipped.reward - far.reward;
+    assert!(
+        (cost_gap - 1e-3 * (27.0 - 3.0)).abs() < 1e-9,
+        "control costs 1e-3·27 raw, 1e-3·3 clipped: gap {cost_gap}"
+    );
+
+    // a fixed reset seed: every reset, seeded or not, starts from the same state
+    let fixed = MakeOptions {
+        rescale_actions: true,
+        fixed_reset_seed: Some(11),
+    };
+    let mut env = registry::make_with("Pendulum-v1", &fixed).expect("pendulum");
+    let (mut first, mut again, mut other) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3]);
+    env.reset(Some(1), &mut first);
+    env.reset(None, &mut again);
+    assert_eq!(first, again);
+    env.reset(Some(2), &mut again);
+    assert_eq!(first, again);
+    let mut plain = registry::make("Pendulum-v1").expect("pendulum");
+    plain.reset(Some(11), &mut other);
+    assert_eq!(first, other, "the fixed seed is the seed of every reset");
+    plain.reset(None, &mut other);
+    assert_ne!(first, other, "without it, the stream continues");
+}

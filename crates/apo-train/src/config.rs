@@ -12,6 +12,37 @@ pub const MAX_LAYERS: usize = 64;
 /// Upper bound of a hidden layer's width.
 pub const MAX_WIDTH: usize = 1 << 20;
 
+fn yes() -> bool {
+    true
+}
+
+/// How the policy's Gaussian actions reach the environment.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionMapping {
+    /// The policy acts in `[-1, 1]^d`, mapped linearly to the action box and clipped
+    /// ([`apo_envs::RescaleAction`]).
+    #[default]
+    Rescale,
+    /// The sampled action goes to the environment as it is, in the box's own units and
+    /// unclipped (the paper's code): a MuJoCo task clamps its controls, but its control
+    /// cost sees the raw action.
+    Raw,
+}
+
+/// How the episodes of a run start.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EpisodeReset {
+    /// Each epoch reseeds its environments from the run's seed and the epoch; later episodes
+    /// continue each environment's random stream (a different start every episode).
+    #[default]
+    Epoch,
+    /// Every episode starts from `reset(seed)` with the run's seed: the same initial state
+    /// every episode (the paper's code on the Gym MuJoCo tasks).
+    RunSeed,
+}
+
 /// Everything the training loop needs to know about a run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -37,6 +68,17 @@ pub struct TrainConfig {
     pub hidden: Vec<usize>,
     /// Initial log standard deviation of Gaussian policies.
     pub init_log_std: f64,
+    /// Bootstrap episodes truncated by the time limit from `V(final observation)` (the
+    /// default); `false` treats them as terminated (value 0), as the paper's code did on the
+    /// Gym MuJoCo tasks. Paths cut by the end of the epoch always bootstrap.
+    #[serde(default = "yes")]
+    pub bootstrap_time_limit: bool,
+    /// How Gaussian actions reach the environment.
+    #[serde(default)]
+    pub actions: ActionMapping,
+    /// How episodes are seeded.
+    #[serde(default)]
+    pub episode_reset: EpisodeReset,
     /// The algorithm's hyperparameters.
     pub algo: AlgoConfig,
 }
@@ -56,6 +98,9 @@ impl TrainConfig {
             keep_checkpoint_every: 0,
             hidden: vec![64, 64],
             init_log_std: -0.5,
+            bootstrap_time_limit: true,
+            actions: ActionMapping::Rescale,
+            episode_reset: EpisodeReset::Epoch,
             algo: AlgoConfig::paper_defaults(algo),
         }
     }
@@ -140,6 +185,14 @@ impl TrainConfig {
             field: format!("algo.{}.{}", self.algo.algorithm(), e.field),
             ..e
         })
+    }
+
+    /// How [`apo_envs::make_with`] builds this run's environments.
+    pub fn make_options(&self) -> apo_envs::MakeOptions {
+        apo_envs::MakeOptions {
+            rescale_actions: self.actions == ActionMapping::Rescale,
+            fixed_reset_seed: (self.episode_reset == EpisodeReset::RunSeed).then_some(self.seed),
+        }
     }
 
     /// The built-in MLP policy for an environment with `observation_dim` and `action`.

@@ -37,7 +37,7 @@ pub mod seed;
 pub mod trainer;
 
 pub use actor::{Act, Actor, BurnActor, HostActor};
-pub use config::TrainConfig;
+pub use config::{ActionMapping, EpisodeReset, TrainConfig};
 pub use error::TrainError;
 pub use metrics::{EpochTimes, ProgressRow};
 pub use rollout::{action_kind, Collector, Rollout};

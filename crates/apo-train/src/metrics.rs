@@ -51,6 +51,19 @@ pub struct ProgressRow {
     pub variance_mean: Option<f64>,
     /// Line search: `accepted:<try>`, `rejected` or `no_step` (APO/TRPO).
     pub line_search: Option<String>,
+    /// Line-search tries rejected for a KL above δ (APO/TRPO).
+    #[serde(default)]
+    pub ls_rejected_kl: Option<usize>,
+    /// Line-search tries inside δ rejected for a lower objective (APO/TRPO).
+    #[serde(default)]
+    pub ls_rejected_objective: Option<usize>,
+    /// `min_J_sq`'s bias `4γ·|mean(logp_old − logp)|·max(adv)/(1 − γ)²` at the new policy
+    /// (APO/PAPO).
+    #[serde(default)]
+    pub bias: Option<f64>,
+    /// Whether `min_J_sq`'s switch is on at the new policy (APO/PAPO).
+    #[serde(default)]
+    pub min_j_sq_on: Option<bool>,
     /// Adam steps taken (PAPO/PPO/A2C).
     pub pi_steps: Option<usize>,
     /// Episodes ended by a simulator instability in this epoch.
@@ -115,6 +128,10 @@ impl ProgressRow {
             mean_variance: report.mean_variance,
             variance_mean: report.variance_mean,
             line_search,
+            ls_rejected_kl: report.rejections.map(|r| r.kl),
+            ls_rejected_objective: report.rejections.map(|r| r.objective),
+            bias: report.bias,
+            min_j_sq_on: report.min_j_sq_on,
             pi_steps: report.proximal.map(|p| p.steps),
             unstable_episodes,
             steps_per_s: times.steps_per_s,

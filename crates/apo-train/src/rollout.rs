@@ -10,7 +10,8 @@
 //! # Bootstrapping
 //!
 //! A path ending by termination bootstraps from 0; one truncated by the time limit from
-//! `V(final observation)`; one cut by the end of the epoch from `V(current observation)`.
+//! `V(final observation)` (or from 0, with [`Collector::bootstrap_time_limit`]`(false)`); one
+//! cut by the end of the epoch from `V(current observation)`.
 //! An episode ended by a simulator instability is treated as terminated (value 0), counted in
 //! [`Rollout::unstable`], and left out of the return statistics.
 
@@ -62,6 +63,7 @@ pub struct Collector {
     buffers: Vec<RolloutBuffer>,
     normalizer: Option<RunningMeanStd>,
     steps_per_env: usize,
+    bootstrap_time_limit: bool,
 }
 
 impl Collector {
@@ -99,8 +101,16 @@ impl Collector {
                 .collect(),
             normalizer,
             steps_per_env,
+            bootstrap_time_limit: true,
             envs,
         }
+    }
+
+    /// Whether paths truncated by the time limit bootstrap from `V(final observation)`
+    /// (default `true`) or from 0.
+    pub fn bootstrap_time_limit(mut self, bootstrap: bool) -> Self {
+        self.bootstrap_time_limit = bootstrap;
+        self
     }
 
     /// The observation dimension.
@@ -189,16 +199,17 @@ impl Collector {
                 if !step.done() {
                     continue;
                 }
-                let last_value = if step.terminated || step.info.unstable {
-                    0.0
-                } else {
-                    let final_obs = self
-                        .envs
-                        .final_obs(i)
-                        .unwrap_or(&self.obs[i * obs_dim..(i + 1) * obs_dim]);
-                    self.normalized(final_obs, &mut row);
-                    actor.values(&row, 1)[0]
-                };
+                let last_value =
+                    if step.terminated || step.info.unstable || !self.bootstrap_time_limit {
+                        0.0
+                    } else {
+                        let final_obs = self
+                            .envs
+                            .final_obs(i)
+                            .unwrap_or(&self.obs[i * obs_dim..(i + 1) * obs_dim]);
+                        self.normalized(final_obs, &mut row);
+                        actor.values(&row, 1)[0]
+                    };
                 self.buffers[i].finish_path(last_value);
                 if step.info.unstable {
                     rollout.unstable += 1;

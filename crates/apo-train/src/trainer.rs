@@ -115,7 +115,8 @@ where
         family: impl FnOnce(&TrainConfig, usize, ActionKind) -> F,
     ) -> Result<Self, TrainError> {
         config.validate()?;
-        let envs = VecEnv::make(&config.env, config.num_envs)?.with_threads(threads)?;
+        let envs = VecEnv::make_with(&config.env, config.num_envs, &config.make_options())?
+            .with_threads(threads)?;
         Self::from_envs(config, envs, device, family)
     }
 
@@ -141,7 +142,8 @@ where
             config.algo.common().gamma,
             config.algo.common().lambda,
             normalizer.clone(),
-        );
+        )
+        .bootstrap_time_limit(config.bootstrap_time_limit);
         let value = config.value(observation_dim);
         let family = family(&config, observation_dim, action);
         let learner = Learner::new(

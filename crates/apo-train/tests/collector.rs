@@ -128,3 +128,44 @@ fn bootstrapping_rules_by_hand() {
     assert_eq!(rollout.unstable, 1);
     assert_eq!(rollout.steps, 14);
 }
+
+#[test]
+fn without_time_limit_bootstrap_a_truncated_path_ends_at_zero() {
+    let envs = VecEnv::new(vec![Script::boxed(vec![(3, End::Truncated)])]).expect("one env");
+    // 5 steps, γ = 0.5; the paper's code: a path cut by the time limit is not bootstrapped
+    let mut collector = Collector::from_envs(envs, 5, 0.5, 0.97, None).bootstrap_time_limit(false);
+    let device = Default::default();
+    let action = ActionKind::Continuous { dim: 1 };
+    let policy = MlpPolicyConfig::new(1, action).init::<NdArray>(&device);
+    // V(s) = s + 4
+    let value = unflatten(
+        ValueConfig {
+            observation_dim: 1,
+            hidden: vec![],
+        }
+        .init::<NdArray>(&device),
+        from_host::<NdArray>(&[1.0, 4.0], &device),
+    );
+    let mut actor = HostActor {
+        policy: HostPolicy::new(&policy, action),
+        value: HostValue::new(&value),
+    };
+    let rollout = collector
+        .collect(&mut actor, 3, &AtomicBool::new(false), &mut |_| {})
+        .expect("not stopped");
+    #[rustfmt::skip]
+    let expected = [
+        // truncated after 3 → 0 (not V([3]) = 7): 1 + 0.5·0, 1 + 0.5·1, 1 + 0.5·1.5
+        1.75, 1.5, 1.0,
+        // cut by the epoch after 2 → still V(obs [2]) = 6
+        3.0, 4.0,
+    ];
+    let ret: Vec<f64> = rollout.batch.ret.iter().map(|&r| f64::from(r)).collect();
+    assert_eq!(ret.len(), expected.len());
+    for (i, (got, want)) in ret.iter().zip(&expected).enumerate() {
+        assert!(
+            (got - want).abs() < 1e-6,
+            "ret[{i}] = {got}, expected {want}"
+        );
+    }
+}

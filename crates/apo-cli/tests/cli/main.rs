@@ -9,6 +9,7 @@ use apo_cli::progress::{self, ProgressRow};
 mod hardening;
 mod plot;
 mod reporting;
+mod sweep_report;
 
 pub fn apo(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_apo"))

@@ -99,8 +99,18 @@ pub fn min_j_sq<B: Backend>(
 ) -> Tensor<B, 1> {
     let value =
         mean_surr.clone().square() + (mean_value.clone() * mean_surr.clone()).mul_scalar(2.0);
-    let off = (mean_surr + mean_value - bias).detach().lower_elem(0.0);
+    let off = min_j_sq_off(mean_surr, mean_value, bias);
     value.mask_fill(off, 0.0)
+}
+
+/// Whether [`min_j_sq`]'s switch is off (`mean_surr + mean(V) − bias < 0`) → `[1]` bool,
+/// without gradient.
+pub fn min_j_sq_off<B: Backend>(
+    mean_surr: Tensor<B, 1>,
+    mean_value: Tensor<B, 1>,
+    bias: Tensor<B, 1>,
+) -> Tensor<B, 1, burn::tensor::Bool> {
+    (mean_surr + mean_value - bias).detach().lower_elem(0.0)
 }
 
 /// VarianceMean term `vm = (ω1 (1 − γ²) / k) · mean(|adv|² + 2 |adv| V) − min_J_sq`, for `k > 0`.

@@ -49,6 +49,11 @@ pub struct ObjectiveTerms<B: Backend> {
     pub mean_variance: Option<Tensor<B, 1>>,
     /// The VarianceMean term (APO/PAPO with `k > 0`).
     pub variance_mean: Option<Tensor<B, 1>>,
+    /// The bias of the lower bound of `J` in `min_J_sq`'s switch (APO/PAPO with `k > 0`).
+    pub bias: Option<Tensor<B, 1>>,
+    /// 1 when `min_J_sq`'s switch is on (`mean_surr + mean(V) − bias ≥ 0`), else 0
+    /// (APO/PAPO with `k > 0`).
+    pub min_j_sq_on: Option<Tensor<B, 1>>,
 }
 
 impl Objective {
@@ -85,6 +90,8 @@ impl Objective {
             mean_surr,
             mean_variance: None,
             variance_mean: None,
+            bias: None,
+            min_j_sq_on: None,
         }
     }
 
@@ -119,7 +126,11 @@ impl Objective {
             batch.adv.clone(),
             params.gamma,
         );
-        let min_j_sq = apo::min_j_sq(mean_surr.clone(), batch.value.clone().mean(), bias);
+        let mean_value = batch.value.clone().mean();
+        let on = apo::min_j_sq_off(mean_surr.clone(), mean_value.clone(), bias.clone())
+            .bool_not()
+            .float();
+        let min_j_sq = apo::min_j_sq(mean_surr.clone(), mean_value, bias.clone());
         let vm = apo::variance_mean(
             batch.adv.clone(),
             batch.value.clone(),
@@ -134,6 +145,8 @@ impl Objective {
             mean_surr,
             mean_variance: Some(mv),
             variance_mean: Some(vm),
+            bias: Some(bias.detach()),
+            min_j_sq_on: Some(on),
         }
     }
 }

@@ -1,0 +1,561 @@
+//! `apo report`: the paper's metrics per environment and algorithm, mean ± std over seeds.
+//!
+//! Runs are grouped by environment, algorithm and *variant*: the run directory's name without
+//! its `<env>-<algo>` prefix and `-s<seed>` suffix (`Hopper-v4-apo-omega1=0.003-s2` is the
+//! variant `omega1=0.003`, `Hopper-apo-s0` the empty one), so the seeds of one setting form
+//! one group. Per group, over its seeds (each seed's value first averaged over epochs):
+//!
+//! - the average of the epochs' mean return over all epochs and over the last N;
+//! - the same for the worst (minimum) return;
+//! - the empirical bound `J − k·Var` and its Selberg confidence over the last N epochs;
+//! - the TRPO-normalized score of the mean (over seeds) of the last-N mean and worst returns
+//!   (paper, appendix "Normalized Score Settings"): with `Δ1 = agent − random` and
+//!   `Δ2 = TRPO − random`, `score = Δ2 / Δ1` when both are negative, else `Δ1 / Δ2`. TRPO is
+//!   the TRPO group of the same environment and variant (else the environment's first TRPO
+//!   group); random is a uniformly random policy's mean return (for the mean) and worst
+//!   return (for the worst) over a number of episodes.
+//!
+//! The count of "best" per metric (the paper's summary table) counts, for each metric, the
+//! environments where a group (algorithm and variant) has the highest value (ties all count).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use apo_core::metrics::average_over_epochs;
+use apo_core::Algorithm;
+use rand::{Rng, SeedableRng};
+
+use crate::config::RunConfig;
+use crate::progress;
+use crate::run_dir;
+use crate::summary::{mean_std, summarize};
+
+/// A value over seeds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stat {
+    /// Mean over the seeds that have the value.
+    pub mean: f64,
+    /// Population standard deviation over them.
+    pub std: f64,
+    /// How many seeds have it.
+    pub seeds: usize,
+}
+
+impl Stat {
+    /// The statistic of `values`; `None` when empty.
+    pub fn of(values: &[f64]) -> Option<Self> {
+        (!values.is_empty()).then(|| {
+            let (mean, std) = mean_std(values);
+            Self {
+                mean,
+                std,
+                seeds: values.len(),
+            }
+        })
+    }
+}
+
+/// A random policy's returns on an environment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Baseline {
+    /// Mean return.
+    pub mean: f64,
+    /// Worst return.
+    pub worst: f64,
+}
+
+/// The metrics ranked in the summary of "best" counts, in column order.
+pub const METRICS: [&str; 4] = [
+    "mean (all)",
+    "mean (last N)",
+    "worst (all)",
+    "worst (last N)",
+];
+
+/// One group's metrics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroupReport {
+    /// Environment.
+    pub env: String,
+    /// Algorithm.
+    pub algo: Algorithm,
+    /// The variant (see the module's documentation); "" for none.
+    pub variant: String,
+    /// The group's run directories.
+    pub runs: Vec<PathBuf>,
+    /// Average mean return over all epochs.
+    pub mean_all: Option<Stat>,
+    /// Average mean return over the last N epochs.
+    pub mean_last: Option<Stat>,
+    /// Average worst return over all epochs.
+    pub worst_all: Option<Stat>,
+    /// Average worst return over the last N epochs.
+    pub worst_last: Option<Stat>,
+    /// Average empirical bound `J − k·Var` over the last N epochs.
+    pub bound_last: Option<Stat>,
+    /// Average Selberg confidence of the bound over the last N epochs.
+    pub confidence_last: Option<Stat>,
+    /// TRPO-normalized score of `mean_last`.
+    pub score_mean: Option<f64>,
+    /// TRPO-normalized score of `worst_last`.
+    pub score_worst: Option<f64>,
+}
+
+impl GroupReport {
+    /// `algo` or `algo (variant)`.
+    pub fn label(&self) -> String {
+        if self.variant.is_empty() {
+            self.algo.name().to_string()
+        } else {
+            format!("{} ({})", self.algo, self.variant)
+        }
+    }
+
+    /// The ranked metrics' means, in [`METRICS`] order.
+    pub fn ranked(&self) -> [Option<f64>; 4] {
+        [
+            self.mean_all,
+            self.mean_last,
+            self.worst_all,
+            self.worst_last,
+        ]
+        .map(|s| s.map(|s| s.mean))
+    }
+}
+
+/// A report: the groups, by environment then label, and the random baselines.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// N of "the last N epochs".
+    pub last: usize,
+    /// Every group.
+    pub groups: Vec<GroupReport>,
+    /// Each environment's random baseline (where it could be measured).
+    pub baselines: BTreeMap<String, Baseline>,
+}
+
+/// [`apo_core::metrics::normalized_score`], `None` when it is not finite (TRPO at the
+/// random policy's level).
+fn normalized_score(agent: f64, trpo: f64, random: f64) -> Option<f64> {
+    Some(apo_core::metrics::normalized_score(agent, trpo, random)).filter(|s| s.is_finite())
+}
+
+/// The run directories among `paths`: a path that is a run directory, or, for a folder that
+/// is not, the run directories directly inside it (a sweep's folder), sorted.
+///
+/// # Errors
+/// A path that does not exist or holds no run.
+pub fn find_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut runs = Vec::new();
+    for path in paths {
+        if run_dir::is_run_dir(path) {
+            runs.push(path.clone());
+            continue;
+        }
+        let entries = std::fs::read_dir(path).with_context(|| {
+            format!(
+                "{} is neither a run directory nor a folder of runs",
+                path.display()
+            )
+        })?;
+        let mut inside: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| run_dir::is_run_dir(p))
+            .collect();
+        if inside.is_empty() {
+            bail!("{} holds no run directory", path.display());
+        }
+        inside.sort();
+        runs.extend(inside);
+    }
+    Ok(runs)
+}
+
+/// The variant of a run directory named `name` of `algo` on `env` (see the module's
+/// documentation).
+pub fn variant(name: &str, env: &str, algo: Algorithm) -> String {
+    let without_seed = match name.rsplit_once("-s") {
+        Some((head, seed)) if !seed.is_empty() && seed.bytes().all(|b| b.is_ascii_digit()) => head,
+        _ => name,
+    };
+    let base = env.rsplit_once("-v").map_or(env, |(b, _)| b);
+    for prefix in [format!("{env}-{algo}"), format!("{base}-{algo}")] {
+        if let Some(rest) = without_seed.strip_prefix(&prefix) {
+            return rest.trim_start_matches('-').to_string();
+        }
+    }
+    without_seed.to_string()
+}
+
+/// Averages of one progress column over the last `last` epochs of a run.
+fn last_average(
+    dir: &Path,
+    column: fn(&progress::ProgressRow) -> Option<f64>,
+    last: usize,
+) -> anyhow::Result<Option<f64>> {
+    let rows = progress::read(&dir.join(run_dir::PROGRESS))?;
+    let values: Vec<f64> = rows.iter().filter_map(column).collect();
+    Ok(average_over_epochs(&values, Some(last)))
+}
+
+/// The report of the runs in `runs` with the last `last` epochs; `baseline(env)` gives an
+/// environment's random baseline (an error leaves that environment's scores out).
+///
+/// # Errors
+/// A run whose `config.toml` or `progress.csv` cannot be read.
+pub fn report(
+    runs: &[PathBuf],
+    last: usize,
+    baseline: &mut dyn FnMut(&str) -> anyhow::Result<Baseline>,
+) -> anyhow::Result<Report> {
+    let mut groups: BTreeMap<(String, String, String), (Algorithm, Vec<PathBuf>)> = BTreeMap::new();
+    for dir in runs {
+        let config = RunConfig::load(&dir.join(run_dir::CONFIG))
+            .with_context(|| format!("{} is not a run directory", dir.display()))?;
+        let algo = config.train.algo.algorithm();
+        let name = dir
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let variant = variant(&name, &config.train.env, algo);
+        groups
+            .entry((config.train.env.clone(), algo.name().to_string(), variant))
+            .or_insert_with(|| (algo, Vec::new()))
+            .1
+            .push(dir.clone());
+    }
+    let mut reports = Vec::new();
+    for ((env, _, variant), (algo, dirs)) in groups {
+        let mut columns: [Vec<f64>; 6] = Default::default();
+        for dir in &dirs {
+            let s = summarize(dir, last).with_context(|| format!("run {}", dir.display()))?;
+            let bound = last_average(dir, |r| r.bound, last)?;
+            let confidence = last_average(dir, |r| r.confidence, last)?;
+            for (column, value) in columns.iter_mut().zip([
+                s.mean_all,
+                s.mean_last,
+                s.worst_all,
+                s.worst_last,
+                bound,
+                confidence,
+            ]) {
+                column.extend(value);
+            }
+        }
+        let [mean_all, mean_last, worst_all, worst_last, bound_last, confidence_last] =
+            columns.map(|c| Stat::of(&c));
+        reports.push(GroupReport {
+            env,
+            algo,
+            variant,
+            runs: dirs,
+            mean_all,
+            mean_last,
+            worst_all,
+            worst_last,
+            bound_last,
+            confidence_last,
+            score_mean: None,
+            score_worst: None,
+        });
+    }
+    let mut baselines = BTreeMap::new();
+    let envs: Vec<String> = reports.iter().map(|g| g.env.clone()).collect();
+    for env in envs {
+        if baselines.contains_key(&env) {
+            continue;
+        }
+        match baseline(&env) {
+            Ok(b) => {
+                baselines.insert(env, b);
+            }
+            Err(e) => eprintln!("note: no random baseline for {env}, so no scores: {e:#}"),
+        }
+    }
+    let reference: Vec<Option<(f64, f64)>> = reports
+        .iter()
+        .map(|g| {
+            let trpo = |same_variant: bool| {
+                reports.iter().find(|t| {
+                    t.env == g.env
+                        && t.algo == Algorithm::Trpo
+                        && (!same_variant || t.variant == g.variant)
+                })
+            };
+            let t = trpo(true).or_else(|| trpo(false))?;
+            Some((t.mean_last?.mean, t.worst_last?.mean))
+        })
+        .collect();
+    for (g, reference) in reports.iter_mut().zip(reference) {
+        let (Some((trpo_mean, trpo_worst)), Some(random)) = (reference, baselines.get(&g.env))
+        else {
+            continue;
+        };
+        g.score_mean = g
+            .mean_last
+            .and_then(|s| normalized_score(s.mean, trpo_mean, random.mean));
+        g.score_worst = g
+            .worst_last
+            .and_then(|s| normalized_score(s.mean, trpo_worst, random.worst));
+    }
+    Ok(Report {
+        last,
+        groups: reports,
+        baselines,
+    })
+}
+
+/// A uniformly random policy's returns on `env` over `episodes` episodes seeded from `seed`
+/// (actions uniform in the policy's `[-1, 1]` box, or uniform over the discrete actions).
+///
+/// # Errors
+/// When the environment cannot be made.
+pub fn random_baseline(env: &str, episodes: usize, seed: u64) -> anyhow::Result<Baseline> {
+    use apo_envs::{Action, Space};
+    let mut e = apo_envs::make(env)?;
+    let mut obs = vec![0.0f32; e.observation_space().flat_dim()];
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let space = e.action_space().clone();
+    let mut action = vec![0.0f32; space.flat_dim()];
+    let mut returns = Vec::with_capacity(episodes);
+    for episode in 0..episodes {
+        e.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
+        let mut total = 0.0;
+        loop {
+            let t = match &space {
+                Space::Discrete { n } => {
+                    e.step(Action::Discrete(rng.random_range(0..*n)), &mut obs)
+                }
+                Space::Box { .. } => {
+                    action
+                        .iter_mut()
+                        .for_each(|a| *a = rng.random_range(-1.0..=1.0));
+                    e.step(Action::Continuous(&action), &mut obs)
+                }
+            };
+            total += t.reward;
+            if t.terminated || t.truncated {
+                break;
+            }
+        }
+        returns.push(total);
+    }
+    let (mean, _) = mean_std(&returns);
+    let worst = returns.iter().copied().fold(f64::INFINITY, f64::min);
+    if !(mean.is_finite() && worst.is_finite()) {
+        bail!("the random policy's returns on {env} are not finite");
+    }
+    Ok(Baseline { mean, worst })
+}
+
+/// For each group label, how many environments it is best in, per metric ([`METRICS`]).
+pub fn best_counts(report: &Report) -> Vec<(String, [usize; 4])> {
+    let mut labels: Vec<String> = report.groups.iter().map(GroupReport::label).collect();
+    labels.sort();
+    labels.dedup();
+    let mut counts: Vec<(String, [usize; 4])> = labels.into_iter().map(|l| (l, [0; 4])).collect();
+    let envs: Vec<&str> = {
+        let mut e: Vec<&str> = report.groups.iter().map(|g| g.env.as_str()).collect();
+        e.dedup();
+        e
+    };
+    for env in envs {
+        let groups: Vec<&GroupReport> = report.groups.iter().filter(|g| g.env == env).collect();
+        for m in 0..METRICS.len() {
+            let best = groups
+                .iter()
+                .filter_map(|g| g.ranked()[m])
+                .fold(f64::NEG_INFINITY, f64::max);
+            for g in &groups {
+                if g.ranked()[m] == Some(best) {
+                    if let Some((_, c)) = counts.iter_mut().find(|(l, _)| *l == g.label()) {
+                        c[m] += 1;
+                    }
+                }
+            }
+        }
+    }
+    counts
+}
+
+fn stat_cell(s: Option<Stat>) -> String {
+    s.map_or("-".to_string(), |s| format!("{:.2} ± {:.2}", s.mean, s.std))
+}
+
+fn score_cell(s: Option<f64>) -> String {
+    s.map_or("-".to_string(), |s| format!("{s:.3}"))
+}
+
+/// The report as Markdown: one table per environment (the best value of each metric in
+/// bold), then the counts of "best".
+pub fn markdown(report: &Report) -> String {
+    let n = report.last;
+    let mut out = String::new();
+    let mut envs: Vec<&str> = report.groups.iter().map(|g| g.env.as_str()).collect();
+    envs.dedup();
+    for env in envs {
+        out.push_str(&format!("### {env}\n\n"));
+        if let Some(b) = report.baselines.get(env) {
+            out.push_str(&format!(
+                "Random policy: mean return {:.2}, worst {:.2}.\n\n",
+                b.mean, b.worst
+            ));
+        }
+        out.push_str(&format!(
+            "| algorithm | seeds | mean return (all) | mean return (last {n}) | worst return (all) | worst return (last {n}) | bound J − k·Var (last {n}) | confidence (last {n}) | score, mean | score, worst |\n"
+        ));
+        out.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+        let groups: Vec<&GroupReport> = report.groups.iter().filter(|g| g.env == env).collect();
+        let best: Vec<f64> = (0..4)
+            .map(|m| {
+                groups
+                    .iter()
+                    .filter_map(|g| g.ranked()[m])
+                    .fold(f64::NEG_INFINITY, f64::max)
+            })
+            .collect();
+        for g in groups {
+            let ranked = g.ranked();
+            let cells: Vec<String> = [g.mean_all, g.mean_last, g.worst_all, g.worst_last]
+                .into_iter()
+                .enumerate()
+                .map(|(m, s)| {
+                    let text = stat_cell(s);
+                    if ranked[m] == Some(best[m]) {
+                        format!("**{text}**")
+                    } else {
+                        text
+                    }
+                })
+                .collect();
+            out.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                g.label(),
+                g.runs.len(),
+                cells.join(" | "),
+                stat_cell(g.bound_last),
+                g.confidence_last
+                    .map_or("-".to_string(), |s| format!("{:.3}", s.mean)),
+                score_cell(g.score_mean),
+                score_cell(g.score_worst),
+            ));
+        }
+        out.push('\n');
+    }
+    out.push_str("### Best per metric (environments)\n\n| algorithm |");
+    for m in METRICS {
+        out.push_str(&format!(" {} |", m.replace('N', &n.to_string())));
+    }
+    out.push_str("\n|---|---|---|---|---|\n");
+    for (label, counts) in best_counts(report) {
+        out.push_str(&format!(
+            "| {label} | {} | {} | {} | {} |\n",
+            counts[0], counts[1], counts[2], counts[3]
+        ));
+    }
+    out
+}
+
+/// The report as CSV, one row per group.
+///
+/// # Errors
+/// Only if writing to memory fails.
+pub fn csv(report: &Report) -> anyhow::Result<String> {
+    let mut w = ::csv::Writer::from_writer(Vec::new());
+    let n = report.last;
+    let mut header = vec![
+        "env".to_string(),
+        "algo".into(),
+        "variant".into(),
+        "seeds".into(),
+    ];
+    for m in [
+        "mean_all",
+        &format!("mean_last{n}"),
+        "worst_all",
+        &format!("worst_last{n}"),
+        &format!("bound_last{n}"),
+        &format!("confidence_last{n}"),
+    ] {
+        header.push(m.to_string());
+        header.push(format!("{m}_std"));
+    }
+    header.extend([
+        "score_mean".into(),
+        "score_worst".into(),
+        "random_mean".into(),
+        "random_worst".into(),
+    ]);
+    w.write_record(&header)?;
+    let num = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v}"));
+    for g in &report.groups {
+        let mut row = vec![
+            g.env.clone(),
+            g.algo.name().to_string(),
+            g.variant.clone(),
+            g.runs.len().to_string(),
+        ];
+        for s in [
+            g.mean_all,
+            g.mean_last,
+            g.worst_all,
+            g.worst_last,
+            g.bound_last,
+            g.confidence_last,
+        ] {
+            row.push(num(s.map(|s| s.mean)));
+            row.push(num(s.map(|s| s.std)));
+        }
+        let b = report.baselines.get(&g.env);
+        row.extend([
+            num(g.score_mean),
+            num(g.score_worst),
+            num(b.map(|b| b.mean)),
+            num(b.map(|b| b.worst)),
+        ]);
+        w.write_record(&row)?;
+    }
+    let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("csv: {e}"))?;
+    Ok(String::from_utf8(bytes)?)
+}
+
+/// Writes `report.md`, `report.csv` and one `curves-<env>.<ext>` per environment into `out`
+/// (created if missing), returning the files written.
+///
+/// # Errors
+/// When a file cannot be written or a plot drawn.
+pub fn write(
+    report: &Report,
+    out: &Path,
+    image: &str,
+    smooth: usize,
+) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut written = Vec::new();
+    for (name, text) in [
+        ("report.md", markdown(report)),
+        ("report.csv", csv(report)?),
+    ] {
+        let path = out.join(name);
+        crate::atomic::write(&path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        written.push(path);
+    }
+    let mut envs: Vec<&str> = report.groups.iter().map(|g| g.env.as_str()).collect();
+    envs.dedup();
+    for env in envs {
+        let groups: Vec<(String, Vec<PathBuf>)> = report
+            .groups
+            .iter()
+            .filter(|g| g.env == env && g.mean_all.is_some())
+            .map(|g| (g.label(), g.runs.clone()))
+            .collect();
+        if groups.is_empty() {
+            continue;
+        }
+        let path = out.join(format!("curves-{}.{image}", env.replace(['/', '\\'], "_")));
+        crate::plot::plot_seed_groups(&groups, &path, &crate::plot::PlotOptions { smooth })?;
+        written.push(path);
+    }
+    Ok(written)
+}

@@ -1,0 +1,360 @@
+//! `apo report` on hand-made progress files, `apo sweep` end to end (resume, extension,
+//! refusal of another sweep), and `--preset paper`.
+
+use std::path::Path;
+
+use apo_cli::config::RunConfig;
+use apo_cli::progress::{self, ProgressRow};
+use apo_cli::report::{self, Baseline};
+use apo_core::Algorithm;
+
+use super::{fails, ok, path};
+
+/// An epoch's row with mean return `mean`, worst `min`, bound `bound` and confidence 0.5.
+fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
+    ProgressRow {
+        epoch,
+        env_steps: 1000 * epoch as u64,
+        episodes: 4,
+        ep_ret_mean: Some(mean),
+        ep_ret_min: Some(min),
+        ep_ret_max: Some(mean + 1.0),
+        ep_ret_std: Some(1.0),
+        ep_len_mean: Some(100.0),
+        bound: Some(bound),
+        confidence: Some(0.5),
+        kl: 0.01,
+        entropy: 1.0,
+        loss_pi: 0.0,
+        loss_v: 1.0,
+        mean_surr: 0.0,
+        mean_variance: None,
+        variance_mean: None,
+        line_search: None,
+        ls_rejected_kl: None,
+        ls_rejected_objective: None,
+        bias: None,
+        min_j_sq_on: None,
+        pi_steps: None,
+        unstable_episodes: 0,
+        steps_per_s: 1000.0,
+        time_s: epoch as f64,
+        rollout_s: 0.5,
+        update_pi_s: 0.25,
+        update_v_s: 0.25,
+    }
+}
+
+/// A run directory of `algo` on CartPole with rows `(mean, min)` (bound = mean − 10).
+fn run(dir: &Path, algo: Algorithm, rows: &[(f64, f64)]) {
+    std::fs::create_dir_all(dir).expect("create run dir");
+    std::fs::write(
+        dir.join("config.toml"),
+        RunConfig::defaults(algo, "CartPole-v1").to_toml(),
+    )
+    .expect("write config.toml");
+    let rows: Vec<ProgressRow> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, &(mean, min))| row(i + 1, mean, min, mean - 10.0))
+        .collect();
+    progress::write(&dir.join("progress.csv"), &rows).expect("write progress.csv");
+}
+
+fn close(got: f64, want: f64) -> bool {
+    (got - want).abs() < 1e-9
+}
+
+#[test]
+fn report_numbers_by_hand() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let t = tmp.path();
+    run(
+        &t.join("CartPole-v1-apo-s0"),
+        Algorithm::Apo,
+        &[(10.0, 5.0), (20.0, 6.0), (30.0, 7.0)],
+    );
+    run(
+        &t.join("CartPole-v1-apo-s1"),
+        Algorithm::Apo,
+        &[(20.0, 7.0), (30.0, 8.0), (40.0, 9.0)],
+    );
+    run(
+        &t.join("CartPole-v1-trpo-s0"),
+        Algorithm::Trpo,
+        &[(10.0, 1.0); 3],
+    );
+    run(
+        &t.join("CartPole-v1-trpo-s1"),
+        Algorithm::Trpo,
+        &[(20.0, 3.0); 3],
+    );
+    // a second setting of APO: its own group
+    run(
+        &t.join("CartPole-v1-apo-omega1=0.01-s0"),
+        Algorithm::Apo,
+        &[(1.0, 0.0); 3],
+    );
+    let runs = report::find_runs(&[t.to_path_buf()]).expect("runs");
+    assert_eq!(runs.len(), 5);
+    let report = report::report(&runs, 2, &mut |env| {
+        assert_eq!(env, "CartPole-v1");
+        Ok(Baseline {
+            mean: 10.0,
+            worst: 5.0,
+        })
+    })
+    .expect("report");
+    let labels: Vec<String> = report.groups.iter().map(|g| g.label()).collect();
+    assert_eq!(labels, ["apo", "apo (omega1=0.01)", "trpo"]);
+    let apo = &report.groups[0];
+    assert_eq!(apo.runs.len(), 2);
+    let stat = |s: Option<report::Stat>| s.map(|s| (s.mean, s.std)).expect("a value");
+    // seeds: mean over all epochs 20 and 30; over the last 2: 25 and 35
+    assert_eq!(stat(apo.mean_all), (25.0, 5.0));
+    assert_eq!(stat(apo.mean_last), (30.0, 5.0));
+    // worst: all 6 and 8; last 2: 6.5 and 8.5
+    assert_eq!(stat(apo.worst_all), (7.0, 1.0));
+    assert_eq!(stat(apo.worst_last), (7.5, 1.0));
+    // bound = mean − 10 in every epoch
+    assert_eq!(stat(apo.bound_last), (20.0, 5.0));
+    assert_eq!(stat(apo.confidence_last), (0.5, 0.0));
+    // TRPO: mean(last 2) 15, worst(last 2) 2; random 10 / 5
+    // mean: Δ1 = 30 − 10 = 20, Δ2 = 15 − 10 = 5 → 4
+    assert!(close(apo.score_mean.expect("score"), 4.0));
+    // worst: Δ1 = 7.5 − 5 = 2.5, Δ2 = 2 − 5 = −3 (not both negative) → 2.5 / −3
+    assert!(close(apo.score_worst.expect("score"), -2.5 / 3.0));
+    // the weak APO setting: Δ1 = 1 − 10 = −9 and Δ2 = 5, then worst Δ1 = −5, Δ2 = −3 → 3/5
+    let weak = &report.groups[1];
+    assert!(close(weak.score_mean.expect("score"), -9.0 / 5.0));
+    assert!(close(weak.score_worst.expect("score"), 0.6));
+    let trpo = &report.groups[2];
+    assert!(close(trpo.score_mean.expect("score"), 1.0));
+
+    // APO is best in every metric on the one environment
+    let counts = report::best_counts(&report);
+    assert_eq!(
+        counts,
+        vec![
+            ("apo".to_string(), [1, 1, 1, 1]),
+            ("apo (omega1=0.01)".to_string(), [0, 0, 0, 0]),
+            ("trpo".to_string(), [0, 0, 0, 0]),
+        ]
+    );
+    let md = report::markdown(&report);
+    assert!(md.contains("| apo | 2 | **25.00 ± 5.00** | **30.00 ± 5.00** | **7.00 ± 1.00** | **7.50 ± 1.00** | 20.00 ± 5.00 | 0.500 | 4.000 | -0.833 |"), "{md}");
+    assert!(
+        md.contains("Random policy: mean return 10.00, worst 5.00."),
+        "{md}"
+    );
+    let csv = report::csv(&report).expect("csv");
+    let mut reader = ::csv::Reader::from_reader(csv.as_bytes());
+    let header = reader.headers().expect("header").clone();
+    let records: Vec<::csv::StringRecord> = reader.records().map(|r| r.expect("record")).collect();
+    assert_eq!(records.len(), 3);
+    let field = |r: &::csv::StringRecord, name: &str| {
+        let i = header.iter().position(|h| h == name).expect(name);
+        r[i].to_string()
+    };
+    assert_eq!(field(&records[0], "mean_last2"), "30");
+    assert_eq!(field(&records[0], "worst_all_std"), "1");
+    assert_eq!(field(&records[1], "variant"), "omega1=0.01");
+    assert_eq!(field(&records[2], "random_worst"), "5");
+}
+
+#[test]
+fn variants_strip_environment_algorithm_and_seed() {
+    let v = |name: &str, algo| report::variant(name, "Hopper-v4", algo);
+    assert_eq!(v("Hopper-v4-apo-s0", Algorithm::Apo), "");
+    assert_eq!(v("Hopper-apo-s12", Algorithm::Apo), "");
+    assert_eq!(
+        v(
+            "Hopper-v4-papo-omega1=0.003-omega2=0.01-s2",
+            Algorithm::Papo
+        ),
+        "omega1=0.003-omega2=0.01"
+    );
+    assert_eq!(v("Hopper-trpo-paper-s1", Algorithm::Trpo), "paper");
+    assert_eq!(v("my-run", Algorithm::Trpo), "my-run");
+}
+
+#[test]
+fn report_command_writes_markdown_csv_and_curves() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let t = tmp.path();
+    run(
+        &t.join("runs/CartPole-v1-apo-s0"),
+        Algorithm::Apo,
+        &[(10.0, 5.0), (20.0, 6.0)],
+    );
+    run(
+        &t.join("runs/CartPole-v1-trpo-s0"),
+        Algorithm::Trpo,
+        &[(15.0, 5.0), (15.0, 6.0)],
+    );
+    let out = t.join("report");
+    let text = ok(&[
+        "report",
+        path(&t.join("runs")),
+        "--last",
+        "1",
+        "--out",
+        path(&out),
+        "--random-episodes",
+        "3",
+    ]);
+    assert!(text.contains("### CartPole-v1"), "{text}");
+    // the random baseline is measured on the real environment: CartPole's random returns
+    // are short episodes of a few tens of steps
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("Random policy"))
+        .expect("baseline");
+    let mean: f64 = line
+        .split("mean return ")
+        .nth(1)
+        .and_then(|s| s.split(',').next())
+        .and_then(|s| s.parse().ok())
+        .expect("a number");
+    assert!((5.0..100.0).contains(&mean), "{line}");
+    for file in ["report.md", "report.csv", "curves-CartPole-v1.png"] {
+        let len = std::fs::metadata(out.join(file))
+            .map(|m| m.len())
+            .unwrap_or(0);
+        assert!(len > 100, "{file}: {len} bytes");
+    }
+    let err = fails(&["report", path(&t.join("nothing"))]);
+    assert!(
+        err.contains("neither a run directory nor a folder of runs"),
+        "{err}"
+    );
+}
+
+#[test]
+fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let sweep = |epochs: &str, grid: &str| {
+        vec![
+            "sweep".to_string(),
+            "--algo".into(),
+            "apo,trpo".into(),
+            "--env".into(),
+            "CartPole".into(),
+            "--seeds".into(),
+            "0..2".into(),
+            "--grid".into(),
+            grid.into(),
+            "--epochs".into(),
+            epochs.into(),
+            "--steps-per-epoch".into(),
+            "300".into(),
+            "--jobs".into(),
+            "2".into(),
+            "--last".into(),
+            "1".into(),
+            "--out".into(),
+            path(&out).into(),
+        ]
+    };
+    let refs = |v: &[String]| v.iter().map(String::as_str).collect::<Vec<_>>();
+    let run_sweep = |v: Vec<String>| ok(&refs(&v));
+    let text = run_sweep(sweep("2", "algo.omega1=0.001,0.01"));
+    assert!(text.contains("6 runs"), "{text}");
+    let names = [
+        "CartPole-v1-apo-omega1=0.001-s0",
+        "CartPole-v1-apo-omega1=0.001-s1",
+        "CartPole-v1-apo-omega1=0.01-s0",
+        "CartPole-v1-apo-omega1=0.01-s1",
+        "CartPole-v1-trpo-s0",
+        "CartPole-v1-trpo-s1",
+    ];
+    for name in names {
+        assert_eq!(apo_cli::sweep::epochs_done(&out.join(name)), 2, "{name}");
+    }
+    let config = RunConfig::load(&out.join(names[2]).join("config.toml")).expect("config");
+    let apo_core::AlgoConfig::Apo(apo) = &config.train.algo else {
+        panic!("an APO run")
+    };
+    assert_eq!(apo.omega1, 0.01);
+    assert_eq!(config.train.seed, 0);
+    assert_eq!(config.train.steps_per_epoch, 300);
+    let cells = std::fs::read_to_string(out.join("cells.csv")).expect("cells.csv");
+    assert_eq!(cells.lines().count(), 4, "{cells}");
+    assert!(cells.contains("CartPole-v1,trpo,\"-\",2,"), "{cells}");
+
+    // the same sweep again: everything is skipped
+    let first = progress::read(&out.join(names[0]).join("progress.csv")).expect("progress");
+    let text = run_sweep(sweep("2", "algo.omega1=0.001,0.01"));
+    assert!(text.contains("finished 0 (skipped 6"), "{text}");
+    // more epochs: every run resumes from its checkpoint, its first epochs unchanged
+    let text = run_sweep(sweep("3", "algo.omega1=0.001,0.01"));
+    assert!(text.contains("finished 6 (skipped 0"), "{text}");
+    let now = progress::read(&out.join(names[0]).join("progress.csv")).expect("progress");
+    assert_eq!(now.len(), 3);
+    assert_eq!(
+        now[..2].iter().map(|r| r.ep_ret_mean).collect::<Vec<_>>(),
+        first.iter().map(|r| r.ep_ret_mean).collect::<Vec<_>>()
+    );
+
+    // another grid into the same folder is refused
+    let err = fails(&refs(&sweep("2", "algo.omega1=0.003")));
+    assert!(err.contains("holds another sweep"), "{err}");
+    // a key no algorithm has
+    let err = fails(&[
+        "sweep",
+        "--algo",
+        "trpo",
+        "--env",
+        "CartPole",
+        "--grid",
+        "algo.omega1=0.1",
+        "--out",
+        path(&tmp.path().join("x")),
+    ]);
+    assert!(err.contains("no algorithm of the sweep"), "{err}");
+}
+
+#[test]
+fn the_paper_preset_sets_the_reference_choices() {
+    let trpo = ok(&[
+        "config", "--algo", "trpo", "--env", "Hopper", "--preset", "paper",
+    ]);
+    for line in [
+        "cg_iters = 100",
+        "cg_damping = 0.0",
+        "actions = \"raw\"",
+        "bootstrap_time_limit = false",
+        "episode_reset = \"run_seed\"",
+    ] {
+        assert!(trpo.lines().any(|l| l == line), "{line} in\n{trpo}");
+    }
+    // not a Gym MuJoCo task: no time-limit or reset change; a proximal method: no CG
+    let ppo = ok(&[
+        "config", "--algo", "ppo", "--env", "Pendulum", "--preset", "paper",
+    ]);
+    assert!(
+        ppo.lines().any(|l| l == "bootstrap_time_limit = true"),
+        "{ppo}"
+    );
+    assert!(
+        ppo.lines().any(|l| l == "episode_reset = \"epoch\""),
+        "{ppo}"
+    );
+    assert!(ppo.lines().any(|l| l == "actions = \"raw\""), "{ppo}");
+    assert!(!ppo.contains("cg_iters"), "{ppo}");
+    // A2C's single policy step; --set still wins over the preset
+    let a2c = ok(&[
+        "config",
+        "--algo",
+        "a2c",
+        "--preset",
+        "paper",
+        "--set",
+        "actions=\"rescale\"",
+    ]);
+    assert!(a2c.lines().any(|l| l == "iters = 1"), "{a2c}");
+    assert!(a2c.lines().any(|l| l == "actions = \"rescale\""), "{a2c}");
+    let defaults = ok(&["config", "--algo", "trpo", "--env", "Hopper"]);
+    assert!(defaults.lines().any(|l| l == "cg_iters = 10"), "{defaults}");
+}
