@@ -157,8 +157,8 @@ pub enum ConfigFileError {
     Range(#[from] apo_core::ConfigError),
 }
 
-/// A named set of settings between the defaults and a config file: defaults, then the
-/// preset, then `--config`, then `--set`. Each of its settings is also a config key of its own.
+/// A named set of settings over the defaults and a config file: defaults, then `--config`,
+/// then the preset, then `--set`. Each of its settings is also a config key of its own.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
     /// The paper's published code where it differs from our defaults (docs/algorithms.md,
@@ -222,7 +222,7 @@ impl RunConfig {
         Self::build_with_preset(algo, env, None, file, sets)
     }
 
-    /// [`RunConfig::build`] with `preset`'s settings layered between the defaults and `file`.
+    /// [`RunConfig::build`] with `preset`'s settings layered over `file`, under `sets`.
     pub fn build_with_preset(
         algo: Algorithm,
         env: &str,
@@ -231,14 +231,14 @@ impl RunConfig {
         sets: &[String],
     ) -> Result<Self, ConfigFileError> {
         let mut doc = to_table(&Self::defaults(algo, env));
+        if let Some(path) = file {
+            merge(&mut doc, migrate_legacy(read_table(path)?), "")?;
+        }
         for (key, value) in preset.map(|p| p.settings(algo, env)).unwrap_or_default() {
             let key = in_section(key, algo);
             if has_path(&doc, &key) {
                 set_path(&mut doc, &key, value)?;
             }
-        }
-        if let Some(path) = file {
-            merge(&mut doc, migrate_legacy(read_table(path)?), "")?;
         }
         for set in sets {
             let (key, value) = set

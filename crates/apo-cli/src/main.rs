@@ -64,7 +64,7 @@ enum Command {
         /// TOML config file layered over the defaults.
         #[arg(long)]
         config: Option<PathBuf>,
-        /// Settings layered over the defaults, under --config and --set.
+        /// Settings layered over the defaults and --config, under --set.
         #[arg(long, value_enum)]
         preset: Option<Preset>,
         /// Override a config key, e.g. --set algo.k=5 (repeatable).
@@ -87,6 +87,10 @@ enum Command {
         /// Moving average over this many epochs (1: none).
         #[arg(long, default_value_t = 1)]
         smooth: usize,
+        /// Plot this numeric progress.csv column instead of the returns (e.g. kl,
+        /// ls_rejected_objective, bias, min_j_sq_on).
+        #[arg(long)]
+        column: Option<String>,
     },
     /// The paper's metrics of runs: average mean and worst return over all and the last N epochs.
     Summary {
@@ -284,7 +288,7 @@ struct TrainArgs {
     /// TOML config file (keys as in a run's config.toml or `apo config`; defaults fill the rest).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Settings layered over the defaults, under --config and --set: `paper` reproduces the
+    /// Settings layered over the defaults and --config, under --set: `paper` reproduces the
     /// paper's published code (`apo config --preset paper` shows them).
     #[arg(long, value_enum)]
     preset: Option<Preset>,
@@ -376,11 +380,14 @@ fn main() -> ExitCode {
             sets,
             run,
         } => print_config(algo, env, preset, config, &sets, run).map(|()| ExitCode::SUCCESS),
-        Command::Plot { runs, out, smooth } => {
-            apo_cli::plot::plot(&runs, &out, &apo_cli::plot::PlotOptions { smooth })
-                .map(|()| println!("wrote {}", out.display()))
-                .map(|()| ExitCode::SUCCESS)
-        }
+        Command::Plot {
+            runs,
+            out,
+            smooth,
+            column,
+        } => apo_cli::plot::plot(&runs, &out, &apo_cli::plot::PlotOptions { smooth, column })
+            .map(|()| println!("wrote {}", out.display()))
+            .map(|()| ExitCode::SUCCESS),
         Command::Bench(command) => bench(command).map(|()| ExitCode::SUCCESS),
         Command::Sweep(args) => sweep(args),
         Command::Report {

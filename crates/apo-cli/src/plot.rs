@@ -29,12 +29,18 @@ pub struct PlotOptions {
     /// best returns: each point is the mean of its epoch and the `smooth − 1` epochs before it
     /// (of those that exist, for the first epochs). 1 draws the values as logged; 0 is an error.
     pub smooth: usize,
+    /// Plot this numeric column of `progress.csv` (e.g. `kl`, `ls_rejected_objective`,
+    /// `bias`; `true`/`false` as 1/0) instead of the returns (`None`).
+    pub column: Option<String>,
 }
 
 impl Default for PlotOptions {
     /// No smoothing.
     fn default() -> Self {
-        Self { smooth: 1 }
+        Self {
+            smooth: 1,
+            column: None,
+        }
     }
 }
 
@@ -146,10 +152,28 @@ struct Run {
 
 impl Run {
     /// Reads the run in `dir` (`config.toml`, `progress.csv`) and smooths its curves.
-    fn load(dir: &Path, smooth: usize) -> anyhow::Result<Self> {
+    fn load(dir: &Path, smooth: usize, column_name: Option<&str>) -> anyhow::Result<Self> {
         let context = || format!("cannot plot the run in {}", dir.display());
         let config = RunConfig::load(&dir.join("config.toml")).with_context(context)?;
         let rows = progress::read(&dir.join("progress.csv")).with_context(context)?;
+        if let Some(name) = column_name {
+            let (values, skipped) = named_column(&rows, name, smooth)
+                .with_context(|| format!("run {}", dir.display()))?;
+            return Ok(Self {
+                dir: dir.to_path_buf(),
+                label: dir.file_name().map_or_else(
+                    || dir.display().to_string(),
+                    |n| n.to_string_lossy().into_owned(),
+                ),
+                env: config.train.env,
+                algo: config.train.algo.algorithm().name(),
+                mean: values,
+                band: (vec![], vec![]),
+                min: vec![],
+                skipped,
+                steps: rows.iter().map(|r| r.env_steps as f64).fold(0.0, f64::max),
+            });
+        }
         let (mean, skipped_mean) = column(&rows, |r| r.ep_ret_mean, smooth);
         let (min, skipped_min) = column(&rows, |r| r.ep_ret_min, smooth);
         let (max, skipped_max) = column(&rows, |r| r.ep_ret_max, smooth);
@@ -260,6 +284,44 @@ fn column(
         .zip(moving_average(&ys, smooth))
         .collect();
     (smoothed, skipped.len())
+}
+
+/// The finite values of the column `name` (numbers, or booleans as 1/0; empty cells are
+/// left out) against environment steps, smoothed, and how many were not finite.
+fn named_column(
+    rows: &[ProgressRow],
+    name: &str,
+    smooth: usize,
+) -> anyhow::Result<(Series, usize)> {
+    let mut logged = Series::new();
+    for row in rows {
+        let value = serde_json::to_value(row)?;
+        let Some(cell) = value.get(name) else {
+            let serde_json::Value::Object(fields) = &value else {
+                bail!("progress rows are not records");
+            };
+            let names: Vec<&str> = fields.keys().map(String::as_str).collect();
+            bail!(
+                "progress.csv has no column `{name}` (columns: {})",
+                names.join(", ")
+            );
+        };
+        let y = match cell {
+            serde_json::Value::Number(n) => n.as_f64(),
+            serde_json::Value::Bool(b) => Some(f64::from(u8::from(*b))),
+            serde_json::Value::Null => None,
+            _ => bail!("progress.csv's column `{name}` is not numeric"),
+        };
+        logged.extend(y.map(|y| (row.env_steps as f64, y)));
+    }
+    let (finite, skipped): (Series, Series) = logged.into_iter().partition(|&(_, y)| y.is_finite());
+    let ys: Vec<f64> = finite.iter().map(|&(_, y)| y).collect();
+    let smoothed = finite
+        .iter()
+        .map(|&(x, _)| x)
+        .zip(moving_average(&ys, smooth))
+        .collect();
+    Ok((smoothed, skipped.len()))
 }
 
 /// Trailing moving average: element `i` is the mean of `values[i + 1 − window ..= i]`, or of
@@ -397,7 +459,8 @@ impl ReturnTicks {
 /// What the image shows.
 struct Figure<'a> {
     runs: &'a [Run],
-    key: [(&'static str, Sample); 3],
+    key: &'static [(&'static str, Sample)],
+    y_label: String,
     title: String,
     subtitle: String,
     x: Range<f64>,
@@ -408,17 +471,17 @@ impl<'a> Figure<'a> {
     fn new(runs: &'a [Run], options: &PlotOptions, seeds: bool) -> anyhow::Result<Self> {
         let envs = distinct(runs.iter().map(|r| r.env.as_str()));
         let algos = distinct(runs.iter().map(|r| r.algo));
-        let (mut subtitle, key) = if seeds {
-            (
+        let (mut subtitle, key): (String, &'static [(&str, Sample)]) = match &options.column {
+            Some(name) => (format!("progress.csv column `{name}`"), &[]),
+            None if seeds => (
                 "Episode return, over seeds: mean of the mean (solid) ± std band, mean of the worst (dashed)"
                     .to_string(),
-                SEEDS_KEY,
-            )
-        } else {
-            (
+                &SEEDS_KEY,
+            ),
+            None => (
                 "Episode return: mean (solid), min–max band, worst (dashed)".to_string(),
-                LEGEND_KEY,
-            )
+                &LEGEND_KEY,
+            ),
         };
         if options.smooth > 1 {
             subtitle += &format!(" · moving average over {} epochs", options.smooth);
@@ -433,6 +496,10 @@ impl<'a> Figure<'a> {
         Ok(Self {
             runs,
             key,
+            y_label: options
+                .column
+                .clone()
+                .unwrap_or_else(|| "episode return".to_string()),
             title: format!("{} — {}", envs.join(", "), algos.join(", ")),
             subtitle,
             x: 0.0..runs.iter().map(|r| r.steps).fold(1.0, f64::max),
@@ -463,7 +530,7 @@ impl<'a> Figure<'a> {
         let labels: Vec<&str> = self.runs.iter().map(|r| r.label.as_str()).collect();
         let widest = labels
             .iter()
-            .chain(&self.key.map(|(text, _)| text))
+            .chain(self.key.iter().map(|(text, _)| text))
             .map(|text| {
                 body.estimate_text_size(text, &font(LABEL_FONT))
                     .map(|(w, _)| w)
@@ -476,7 +543,7 @@ impl<'a> Figure<'a> {
             (widest + LEGEND_TEXT_X as u32 + 16).clamp(LEGEND_WIDTH.start, LEGEND_WIDTH.end);
         let (chart_area, legend_area) = body.split_horizontally(width - legend_width);
         self.draw_chart(&chart_area)?;
-        draw_legend(&legend_area, &labels, &self.key)?;
+        draw_legend(&legend_area, &labels, self.key)?;
         root.present()?;
         Ok(())
     }
@@ -513,7 +580,7 @@ impl<'a> Figure<'a> {
             .label_style(font(LABEL_FONT))
             .axis_desc_style(font(18))
             .x_desc("environment steps")
-            .y_desc("episode return")
+            .y_desc(self.y_label.as_str())
             .max_light_lines(0)
             .bold_line_style(BLACK.mix(0.1))
             .draw()?;
@@ -635,6 +702,9 @@ where
             text.clone(),
         ))?;
     }
+    if key.is_empty() {
+        return Ok(());
+    }
     y += 2 * LEGEND_ROW;
     area.draw(&Text::new("Lines", (12, y), heading))?;
     for &(label, sample) in key {
@@ -683,7 +753,7 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
     let format = ImageFormat::of(out)?;
     let runs = runs
         .iter()
-        .map(|dir| Run::load(dir, options.smooth))
+        .map(|dir| Run::load(dir, options.smooth, options.column.as_deref()))
         .collect::<anyhow::Result<Vec<_>>>()?;
     for run in runs.iter().filter(|r| r.skipped > 0) {
         eprintln!(

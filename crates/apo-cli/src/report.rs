@@ -554,7 +554,14 @@ pub fn write(
             continue;
         }
         let path = out.join(format!("curves-{}.{image}", env.replace(['/', '\\'], "_")));
-        crate::plot::plot_seed_groups(&groups, &path, &crate::plot::PlotOptions { smooth })?;
+        crate::plot::plot_seed_groups(
+            &groups,
+            &path,
+            &crate::plot::PlotOptions {
+                smooth,
+                column: None,
+            },
+        )?;
         written.push(path);
     }
     Ok(written)

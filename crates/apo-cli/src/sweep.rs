@@ -95,7 +95,7 @@ pub struct SweepRun {
 }
 
 impl SweepRun {
-    /// The cell as `key=value` pairs joined by `-` (short keys), `-` when empty.
+    /// The cell as `key=value` pairs joined by spaces (short keys), `-` when empty.
     pub fn cell_label(&self) -> String {
         if self.cell.is_empty() {
             return "-".to_string();
@@ -104,7 +104,7 @@ impl SweepRun {
             .iter()
             .map(|(k, v)| format!("{}={v}", k.rsplit('.').next().unwrap_or(k)))
             .collect::<Vec<_>>()
-            .join(",")
+            .join(" ")
     }
 
     /// The `--set` arguments of the run: the sweep's, then the cell's.
@@ -456,7 +456,7 @@ pub struct CellResult {
     pub env: String,
     /// Algorithm.
     pub algo: Algorithm,
-    /// The cell's label (`omega1=0.001,omega2=0.003`, `-` without axes).
+    /// The cell's label (`omega1=0.001 omega2=0.003`, `-` without axes).
     pub cell: String,
     /// Seeds with a value.
     pub seeds: usize,

@@ -61,6 +61,10 @@ fn run(dir: &Path, algo: Algorithm, rows: &[(f64, f64)]) {
     progress::write(&dir.join("progress.csv"), &rows).expect("write progress.csv");
 }
 
+fn refs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}
+
 fn close(got: f64, want: f64) -> bool {
     (got - want).abs() < 1e-9
 }
@@ -257,7 +261,6 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
             path(&out).into(),
         ]
     };
-    let refs = |v: &[String]| v.iter().map(String::as_str).collect::<Vec<_>>();
     let run_sweep = |v: Vec<String>| ok(&refs(&v));
     let text = run_sweep(sweep("2", "algo.omega1=0.001,0.01"));
     assert!(text.contains("6 runs"), "{text}");
@@ -355,6 +358,15 @@ fn the_paper_preset_sets_the_reference_choices() {
     ]);
     assert!(a2c.lines().any(|l| l == "iters = 1"), "{a2c}");
     assert!(a2c.lines().any(|l| l == "actions = \"rescale\""), "{a2c}");
+    // the preset wins over a config file that spells out the defaults
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/trpo.toml");
+    let with_file = ok(&[
+        "config", "--algo", "trpo", "--config", file, "--env", "Hopper", "--preset", "paper",
+    ]);
+    assert!(
+        with_file.lines().any(|l| l == "cg_iters = 100"),
+        "{with_file}"
+    );
     let defaults = ok(&["config", "--algo", "trpo", "--env", "Hopper"]);
     assert!(defaults.lines().any(|l| l == "cg_iters = 10"), "{defaults}");
 }
