@@ -863,6 +863,16 @@ mod tests {
                 .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
             assert_eq!(c, RunConfig::defaults(algo, "x"), "{}", file.display());
         }
+        // the tuned configs: each names its algorithm and builds
+        let tuned = std::fs::read_dir(configs.join("tuned")).expect("configs/tuned");
+        for file in tuned.map(|e| e.expect("an entry").path()) {
+            let algo = file_algorithm(&file)
+                .ok()
+                .flatten()
+                .unwrap_or_else(|| panic!("{}: no algorithm section", file.display()));
+            RunConfig::build(algo, "x", Some(&file), &[])
+                .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        }
     }
 
     #[test]

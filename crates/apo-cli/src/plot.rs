@@ -161,10 +161,7 @@ impl Run {
                 .with_context(|| format!("run {}", dir.display()))?;
             return Ok(Self {
                 dir: dir.to_path_buf(),
-                label: dir.file_name().map_or_else(
-                    || dir.display().to_string(),
-                    |n| n.to_string_lossy().into_owned(),
-                ),
+                label: dir_label(dir),
                 env: config.train.env,
                 algo: config.train.algo.algorithm().name(),
                 mean: values,
@@ -179,10 +176,7 @@ impl Run {
         let (max, skipped_max) = column(&rows, |r| r.ep_ret_max, smooth);
         Ok(Self {
             dir: dir.to_path_buf(),
-            label: dir.file_name().map_or_else(
-                || dir.display().to_string(),
-                |n| n.to_string_lossy().into_owned(),
-            ),
+            label: dir_label(dir),
             env: config.train.env,
             algo: config.train.algo.algorithm().name(),
             mean,
@@ -284,6 +278,14 @@ fn column(
         .zip(moving_average(&ys, smooth))
         .collect();
     (smoothed, skipped.len())
+}
+
+/// A run's name in the legend: its directory's name.
+fn dir_label(dir: &Path) -> String {
+    dir.file_name().map_or_else(
+        || dir.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }
 
 /// The finite values of the column `name` (numbers, or booleans as 1/0; empty cells are

@@ -74,6 +74,26 @@ impl Env for Script {
     }
 }
 
+/// An actor on one-dimensional observations with `V(s) = s + 4` (one linear layer, weight 1,
+/// bias 4).
+fn actor() -> HostActor {
+    let device = Default::default();
+    let action = ActionKind::Continuous { dim: 1 };
+    let policy = MlpPolicyConfig::new(1, action).init::<NdArray>(&device);
+    let value = unflatten(
+        ValueConfig {
+            observation_dim: 1,
+            hidden: vec![],
+        }
+        .init::<NdArray>(&device),
+        from_host::<NdArray>(&[1.0, 4.0], &device),
+    );
+    HostActor {
+        policy: HostPolicy::new(&policy, action),
+        value: HostValue::new(&value),
+    }
+}
+
 #[test]
 fn bootstrapping_rules_by_hand() {
     let envs = VecEnv::new(vec![
@@ -83,22 +103,7 @@ fn bootstrapping_rules_by_hand() {
     .expect("same spaces");
     // 7 vector steps, γ = 0.5
     let mut collector = Collector::from_envs(envs, 14, 0.5, 0.97, None);
-    let device = Default::default();
-    let action = ActionKind::Continuous { dim: 1 };
-    let policy = MlpPolicyConfig::new(1, action).init::<NdArray>(&device);
-    // V(s) = s + 4: one linear layer, weight 1, bias 4
-    let value = unflatten(
-        ValueConfig {
-            observation_dim: 1,
-            hidden: vec![],
-        }
-        .init::<NdArray>(&device),
-        from_host::<NdArray>(&[1.0, 4.0], &device),
-    );
-    let mut actor = HostActor {
-        policy: HostPolicy::new(&policy, action),
-        value: HostValue::new(&value),
-    };
+    let mut actor = actor();
     let rollout = collector
         .collect(&mut actor, 3, &AtomicBool::new(false), &mut |_| {})
         .expect("not stopped");
@@ -134,22 +139,7 @@ fn without_time_limit_bootstrap_a_truncated_path_ends_at_zero() {
     let envs = VecEnv::new(vec![Script::boxed(vec![(3, End::Truncated)])]).expect("one env");
     // 5 steps, γ = 0.5; the paper's code: a path cut by the time limit is not bootstrapped
     let mut collector = Collector::from_envs(envs, 5, 0.5, 0.97, None).bootstrap_time_limit(false);
-    let device = Default::default();
-    let action = ActionKind::Continuous { dim: 1 };
-    let policy = MlpPolicyConfig::new(1, action).init::<NdArray>(&device);
-    // V(s) = s + 4
-    let value = unflatten(
-        ValueConfig {
-            observation_dim: 1,
-            hidden: vec![],
-        }
-        .init::<NdArray>(&device),
-        from_host::<NdArray>(&[1.0, 4.0], &device),
-    );
-    let mut actor = HostActor {
-        policy: HostPolicy::new(&policy, action),
-        value: HostValue::new(&value),
-    };
+    let mut actor = actor();
     let rollout = collector
         .collect(&mut actor, 3, &AtomicBool::new(false), &mut |_| {})
         .expect("not stopped");

@@ -12,7 +12,7 @@ use apo_core::Algorithm;
 use super::{fails, ok, path};
 
 /// An epoch's row with these returns (mean, min, max) after `env_steps` steps.
-fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> ProgressRow {
+pub fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> ProgressRow {
     ProgressRow {
         epoch,
         env_steps,

@@ -13,35 +13,8 @@ use super::{fails, ok, path};
 /// An epoch's row with mean return `mean`, worst `min`, bound `bound` and confidence 0.5.
 fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
     ProgressRow {
-        epoch,
-        env_steps: 1000 * epoch as u64,
-        episodes: 4,
-        ep_ret_mean: Some(mean),
-        ep_ret_min: Some(min),
-        ep_ret_max: Some(mean + 1.0),
-        ep_ret_std: Some(1.0),
-        ep_len_mean: Some(100.0),
         bound: Some(bound),
-        confidence: Some(0.5),
-        kl: 0.01,
-        entropy: 1.0,
-        loss_pi: 0.0,
-        loss_v: 1.0,
-        mean_surr: 0.0,
-        mean_variance: None,
-        variance_mean: None,
-        line_search: None,
-        ls_rejected_kl: None,
-        ls_rejected_objective: None,
-        bias: None,
-        min_j_sq_on: None,
-        pi_steps: None,
-        unstable_episodes: 0,
-        steps_per_s: 1000.0,
-        time_s: epoch as f64,
-        rollout_s: 0.5,
-        update_pi_s: 0.25,
-        update_v_s: 0.25,
+        ..super::plot::row(epoch, 1000 * epoch as u64, mean, min, mean + 1.0)
     }
 }
 
