@@ -237,23 +237,15 @@ impl Run {
                 min.push((x, crate::summary::mean_std(&worst).0));
             }
         }
-        let smoothed = |series: Series| -> Series {
-            let ys: Vec<f64> = series.iter().map(|&(_, y)| y).collect();
-            series
-                .iter()
-                .map(|&(x, _)| x)
-                .zip(moving_average(&ys, smooth))
-                .collect()
-        };
         Ok(Self {
             dir: first.clone(),
             label: format!("{label} ({} seeds)", dirs.len()),
             env: config.train.env,
             algo: config.train.algo.algorithm().name(),
             steps: mean.last().map_or(0.0, |&(x, _)| x),
-            mean: smoothed(mean),
-            band: (smoothed(lo), smoothed(hi)),
-            min: smoothed(min),
+            mean: smoothed(mean, smooth),
+            band: (smoothed(lo, smooth), smoothed(hi, smooth)),
+            min: smoothed(min, smooth),
             skipped,
         })
     }
@@ -270,14 +262,23 @@ fn column(
         .iter()
         .filter_map(|r| value(r).map(|v| (r.env_steps as f64, v)))
         .collect();
+    finite_smoothed(logged, smooth)
+}
+
+/// The finite points of `logged`, smoothed over `smooth` epochs, and how many were not finite.
+fn finite_smoothed(logged: Series, smooth: usize) -> (Series, usize) {
     let (finite, skipped): (Series, Series) = logged.into_iter().partition(|&(_, y)| y.is_finite());
-    let ys: Vec<f64> = finite.iter().map(|&(_, y)| y).collect();
-    let smoothed = finite
+    (smoothed(finite, smooth), skipped.len())
+}
+
+/// `series` with its values smoothed by [`moving_average`] over `smooth` epochs.
+fn smoothed(series: Series, smooth: usize) -> Series {
+    let ys: Vec<f64> = series.iter().map(|&(_, y)| y).collect();
+    series
         .iter()
         .map(|&(x, _)| x)
         .zip(moving_average(&ys, smooth))
-        .collect();
-    (smoothed, skipped.len())
+        .collect()
 }
 
 /// A run's name in the legend: its directory's name.
@@ -316,14 +317,7 @@ fn named_column(
         };
         logged.extend(y.map(|y| (row.env_steps as f64, y)));
     }
-    let (finite, skipped): (Series, Series) = logged.into_iter().partition(|&(_, y)| y.is_finite());
-    let ys: Vec<f64> = finite.iter().map(|&(_, y)| y).collect();
-    let smoothed = finite
-        .iter()
-        .map(|&(x, _)| x)
-        .zip(moving_average(&ys, smooth))
-        .collect();
-    Ok((smoothed, skipped.len()))
+    Ok(finite_smoothed(logged, smooth))
 }
 
 /// Trailing moving average: element `i` is the mean of `values[i + 1 − window ..= i]`, or of

@@ -8,7 +8,6 @@ use std::sync::{Arc, OnceLock};
 
 use crate::env::Env;
 use crate::error::EnvError;
-use crate::registry::MakeOptions;
 use crate::space::Space;
 use crate::wrappers::{FixedReset, RescaleAction, TimeLimit};
 
@@ -70,15 +69,19 @@ impl Member {
         Ok((env, spaces))
     }
 
-    /// The environment with [`RescaleAction`] (box actions, unless `options` say not),
-    /// [`FixedReset`] (if `options` ask for it) and [`TimeLimit`].
-    pub(crate) fn make(&self, options: &MakeOptions) -> Result<Box<dyn Env>, EnvError> {
-        let env = if options.rescale_actions {
+    /// The environment with [`RescaleAction`] (box actions, if `rescale_actions`),
+    /// [`FixedReset`] (with `fixed_reset_seed`) and [`TimeLimit`].
+    pub(crate) fn make(
+        &self,
+        rescale_actions: bool,
+        fixed_reset_seed: Option<u64>,
+    ) -> Result<Box<dyn Env>, EnvError> {
+        let env = if rescale_actions {
             self.build_for_policy()?.0
         } else {
             (self.build)()?
         };
-        let env: Box<dyn Env> = match options.fixed_reset_seed {
+        let env: Box<dyn Env> = match fixed_reset_seed {
             Some(seed) => Box::new(FixedReset::new(env, seed)),
             None => env,
         };

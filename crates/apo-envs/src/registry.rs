@@ -259,7 +259,7 @@ impl Default for MakeOptions {
 /// # Errors
 /// Those of [`make`].
 pub fn make_with(name: &str, options: &MakeOptions) -> Result<Box<dyn Env>, EnvError> {
-    lookup(name)?.make(options)
+    lookup(name)?.make(options.rescale_actions, options.fixed_reset_seed)
 }
 
 // `VecEnv::make` is defined here, beside `make`, so that `vector` does not depend on the
