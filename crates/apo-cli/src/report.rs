@@ -29,7 +29,7 @@ use rand::{Rng, SeedableRng};
 use crate::config::RunConfig;
 use crate::progress;
 use crate::run_dir;
-use crate::summary::{mean_std, summarize};
+use crate::summary::{mean_std, summarize_rows};
 
 /// A value over seeds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -188,15 +188,14 @@ pub fn variant(name: &str, env: &str, algo: Algorithm) -> String {
     without_seed.to_string()
 }
 
-/// Averages of one progress column over the last `last` epochs of a run.
+/// The average of one progress column over the last `last` epochs of a run's rows.
 fn last_average(
-    dir: &Path,
+    rows: &[progress::ProgressRow],
     column: fn(&progress::ProgressRow) -> Option<f64>,
     last: usize,
-) -> anyhow::Result<Option<f64>> {
-    let rows = progress::read(&dir.join(run_dir::PROGRESS))?;
+) -> Option<f64> {
     let values: Vec<f64> = rows.iter().filter_map(column).collect();
-    Ok(average_over_epochs(&values, Some(last)))
+    average_over_epochs(&values, Some(last))
 }
 
 /// The report of the runs in `runs` with the last `last` epochs; `baseline(env)` gives an
@@ -228,9 +227,11 @@ pub fn report(
     for ((env, _, variant), (algo, dirs)) in groups {
         let mut columns: [Vec<f64>; 6] = Default::default();
         for dir in &dirs {
-            let s = summarize(dir, last).with_context(|| format!("run {}", dir.display()))?;
-            let bound = last_average(dir, |r| r.bound, last)?;
-            let confidence = last_average(dir, |r| r.confidence, last)?;
+            let rows = progress::read(&dir.join(run_dir::PROGRESS))
+                .with_context(|| format!("run {}", dir.display()))?;
+            let s = summarize_rows(&rows, last);
+            let bound = last_average(&rows, |r| r.bound, last);
+            let confidence = last_average(&rows, |r| r.confidence, last);
             for (column, value) in columns.iter_mut().zip([
                 s.mean_all,
                 s.mean_last,

@@ -28,12 +28,19 @@ pub struct RunSummary {
 
 /// Summarizes the run in `dir` with the last `last` epochs.
 pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
-    let rows = progress::read(&dir.join("progress.csv"))?;
+    Ok(summarize_rows(
+        &progress::read(&dir.join("progress.csv"))?,
+        last,
+    ))
+}
+
+/// [`summarize`] of a run's progress rows.
+pub fn summarize_rows(rows: &[progress::ProgressRow], last: usize) -> RunSummary {
     let means: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_mean).collect();
     let worst: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_min).collect();
     let time = rows.last().map_or(0.0, |r| r.time_s);
     let env_steps = rows.last().map_or(0, |r| r.env_steps);
-    Ok(RunSummary {
+    RunSummary {
         epochs: rows.len(),
         env_steps,
         mean_all: average_over_epochs(&means, None),
@@ -45,7 +52,7 @@ pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
         } else {
             0.0
         },
-    })
+    }
 }
 
 /// The mean and the population standard deviation of `values` (`(NaN, NaN)` when empty).

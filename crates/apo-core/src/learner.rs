@@ -17,6 +17,7 @@ use crate::algorithm::{AlgoConfig, ConfigError, PolicyStep};
 use crate::buffer::Batch;
 use crate::flat::{flatten, from_host, to_host, unflatten};
 use crate::kernels::Kernels;
+use crate::objective::Objective;
 use crate::policy::{ActionKind, Policy, PolicyFamily};
 use crate::proximal::{proximal_update, value_update, ProximalReport};
 use crate::tensor_batch::TensorBatch;
@@ -287,7 +288,9 @@ where
             .policy_on::<B>(&self.device)
             .distribution(tb.obs.clone());
         let kl = to_host(after.kl_from(&tb.dist_old).mean())[0];
-        let terms_after = objective.evaluate(&after, &tb);
+        // the switch's diagnostics exist for APO and PAPO only
+        let terms_after = matches!(objective, Objective::Apo(_) | Objective::Papo { .. })
+            .then(|| objective.evaluate(&after, &tb));
         UpdateReport {
             loss_pi: -to_host(terms.objective)[0],
             mean_surr: to_host(terms.mean_surr)[0],
@@ -298,8 +301,10 @@ where
             loss_v: value_report.loss_before,
             line_search,
             rejections,
-            bias: scalar(terms_after.bias),
-            min_j_sq_on: scalar(terms_after.min_j_sq_on).map(|on| on > 0.5),
+            bias: terms_after.as_ref().and_then(|t| scalar(t.bias.clone())),
+            min_j_sq_on: terms_after
+                .and_then(|t| scalar(t.min_j_sq_on))
+                .map(|on| on > 0.5),
             proximal,
             policy_update_s,
             value_update_s,
