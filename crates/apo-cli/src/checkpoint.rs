@@ -21,7 +21,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use apo_core::{ActionKind, Learner, MlpPolicyConfig, PolicyFamily};
+use apo_core::{ActionKind, Learner, MlpPolicyConfig, Multipliers, PolicyFamily};
 use apo_train::RunState;
 use burn::backend::Autodiff;
 use burn::module::Module;
@@ -48,6 +48,10 @@ pub struct TrainState {
     /// Epochs, steps, time, observation-normalizer statistics.
     #[serde(flatten)]
     pub run: RunState,
+    /// V-MPO's learned temperature and multiplier with their Adam state (written from the
+    /// learner by [`save`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vmpo: Option<Multipliers>,
 }
 
 impl TrainState {
@@ -56,6 +60,7 @@ impl TrainState {
         Self {
             format: FORMAT,
             run,
+            vmpo: None,
         }
     }
 }
@@ -230,6 +235,7 @@ fn write_into<B: Backend>(
         &tmp.join(STATE),
         serde_json::to_string_pretty(&TrainState {
             format: FORMAT,
+            vmpo: learner.multipliers().copied(),
             ..state.clone()
         })?
         .as_bytes(),
@@ -377,6 +383,20 @@ pub fn load<B: Backend>(
             from.join("policy.mpk").display(),
             policy.num_params()
         );
+    }
+    match (state.vmpo, learner.multipliers().is_some()) {
+        (Some(m), true) => {
+            learner.restore_multipliers(m);
+        }
+        (None, false) => {}
+        (Some(_), false) => bail!(
+            "{} holds V-MPO's multipliers, but the run's algorithm is not V-MPO",
+            state_path.display()
+        ),
+        (None, true) => bail!(
+            "{} has no V-MPO multipliers (eta, alpha); the checkpoint is not of a V-MPO run",
+            state_path.display()
+        ),
     }
     learner.restore(policy, value, policy_optim, value_optim);
     Ok(state)

@@ -112,6 +112,59 @@ impl<B: Backend> DistParams<B> {
         }
     }
 
+    /// The α-divergence `D_α(old ‖ self)` per state → `[batch]`, for `α ∈ (0, 1)`, in Amari's
+    /// form `D_α(p ‖ q) = (∫ p^α q^(1−α) − 1) / (α(α − 1))` with `p = old`, which tends to
+    /// `KL(old ‖ self)` as α → 1.
+    ///
+    /// Gaussian: the closed form per action dimension, summed over dimensions (as AlphaPPO's
+    /// experiments compute it; for more than one dimension this is not the divergence of the
+    /// joint distribution, except in the limit α → 1): with `s² = α σ1² + (1 − α) σ0²`,
+    /// `∫ p^α q^(1−α) = σ0^(1−α) σ1^α / s · exp(−α(1 − α)(μ0 − μ1)² / (2 s²))`.
+    /// Categorical: `Σ_a p_old(a)^α p(a)^(1−α)`, computed in log space.
+    ///
+    /// # Panics
+    /// If `old` is of the other family (a programming error, not user input).
+    pub fn alpha_divergence_from(&self, old: &DistParams<B>, alpha: f64) -> Tensor<B, 1> {
+        let scale = 1.0 / (alpha * (alpha - 1.0));
+        match (old, self) {
+            (
+                DistParams::Gaussian {
+                    mean: m0,
+                    log_std: s0,
+                },
+                DistParams::Gaussian {
+                    mean: m1,
+                    log_std: s1,
+                },
+            ) => {
+                // ln ∫ p^α q^(1−α) per dimension, [batch, action_dim]
+                let s_sq = s1.clone().mul_scalar(2.0).exp().mul_scalar(alpha)
+                    + s0.clone().mul_scalar(2.0).exp().mul_scalar(1.0 - alpha);
+                let log_overlap = s0.clone().mul_scalar(1.0 - alpha) + s1.clone().mul_scalar(alpha)
+                    - s_sq.clone().log().mul_scalar(0.5)
+                    - ((m0.clone() - m1.clone()).square() / s_sq)
+                        .mul_scalar(0.5 * alpha * (1.0 - alpha));
+                (log_overlap.exp().sub_scalar(1.0).mul_scalar(scale))
+                    .sum_dim(1)
+                    .squeeze_dim(1)
+            }
+            (DistParams::Categorical { logits: l0 }, DistParams::Categorical { logits: l1 }) => {
+                let x = log_softmax(l0.clone(), 1).mul_scalar(alpha)
+                    + log_softmax(l1.clone(), 1).mul_scalar(1.0 - alpha);
+                // log-sum-exp over actions, shifted by the (constant) row maximum
+                let max = x.clone().max_dim(1).detach();
+                let dims = x.dims();
+                let log_overlap = (x - max.clone().expand(dims)).exp().sum_dim(1).log() + max;
+                log_overlap
+                    .exp()
+                    .sub_scalar(1.0)
+                    .mul_scalar(scale)
+                    .squeeze_dim(1)
+            }
+            _ => panic!("α-divergence between distributions of different families"),
+        }
+    }
+
     /// The same parameters cut from the autodiff graph.
     pub fn detach(self) -> Self {
         match self {

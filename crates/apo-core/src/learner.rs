@@ -17,7 +17,7 @@ use crate::algorithm::{AlgoConfig, ConfigError, PolicyStep};
 use crate::buffer::Batch;
 use crate::flat::{flatten, from_host, to_host, unflatten};
 use crate::kernels::Kernels;
-use crate::objective::Objective;
+use crate::objective::{Multipliers, Objective};
 use crate::policy::{ActionKind, Policy, PolicyFamily};
 use crate::proximal::{proximal_update, value_update, ProximalReport};
 use crate::tensor_batch::TensorBatch;
@@ -59,8 +59,10 @@ pub struct UpdateReport {
     pub bias: Option<f64>,
     /// Whether `min_J_sq`'s switch is on at θ_{j+1} (APO/PAPO with `k > 0`).
     pub min_j_sq_on: Option<bool>,
-    /// Proximal step report (PAPO, PPO, A2C).
+    /// Proximal step report (PAPO, PPO, A2C, ESPO, AlphaPPO, V-MPO).
     pub proximal: Option<ProximalReport>,
+    /// V-MPO's temperature η and multiplier α after the update.
+    pub multipliers: Option<Multipliers>,
     /// Wall time of the policy update (with the evaluation of the terms at θ_j), seconds.
     pub policy_update_s: f64,
     /// Wall time of the value update, seconds.
@@ -80,6 +82,8 @@ where
     value: ValueNet<Ad<B>>,
     policy_optim: PolicyAdam<B, F>,
     value_optim: ValueAdam<B>,
+    /// V-MPO's learned η and α (`None` for the other algorithms).
+    multipliers: Option<Multipliers>,
     kernels: Kernels,
 }
 
@@ -121,7 +125,12 @@ where
             let _ = (flatten(&policy), flatten(&value));
             (policy, value)
         };
+        let multipliers = match config.objective() {
+            Objective::Vmpo(p) => Some(Multipliers::new(p.eta, p.alpha)),
+            _ => None,
+        };
         Ok(Self {
+            multipliers,
             policy,
             value,
             family,
@@ -196,6 +205,33 @@ where
         (&self.policy_optim, &self.value_optim)
     }
 
+    /// V-MPO's learned temperature and multiplier with their Adam state (for checkpoints);
+    /// `None` for the other algorithms.
+    pub fn multipliers(&self) -> Option<&Multipliers> {
+        self.multipliers.as_ref()
+    }
+
+    /// Replaces V-MPO's multipliers (when resuming from a checkpoint). Returns `false`, and
+    /// changes nothing, when the algorithm is not V-MPO.
+    pub fn restore_multipliers(&mut self, multipliers: Multipliers) -> bool {
+        match &mut self.multipliers {
+            Some(m) => {
+                *m = multipliers;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The objective the next update maximizes: the configured one, with V-MPO's learned
+    /// η and α.
+    pub fn objective(&self) -> Objective {
+        match (self.config.objective(), &self.multipliers) {
+            (Objective::Vmpo(p), Some(m)) => Objective::Vmpo(m.apply(p)),
+            (objective, _) => objective,
+        }
+    }
+
     /// Replaces the networks and optimizer states (when resuming from a checkpoint).
     pub fn restore(
         &mut self,
@@ -214,7 +250,7 @@ where
     /// network, on `batch` collected by the current policy; `rng` shuffles minibatches.
     pub fn update(&mut self, batch: &Batch, rng: &mut impl Rng) -> UpdateReport {
         let start = std::time::Instant::now();
-        let objective = self.config.objective();
+        let objective = self.objective();
         let tb = TensorBatch::<B>::new(batch, self.action, &self.device);
         let theta = self.policy_params();
         let before = unflatten(
@@ -241,14 +277,15 @@ where
                 self.policy = unflatten(self.policy.clone(), leaf);
                 (Some(report.outcome), Some(report.rejections), None)
             }
-            PolicyStep::Proximal(policy_update) => {
+            PolicyStep::Proximal(step) => {
                 let policy = self.policy.clone();
                 let (policy, report) = proximal_update(
                     policy,
                     &mut self.policy_optim,
                     &objective,
                     &tb1,
-                    policy_update,
+                    step,
+                    self.multipliers.as_mut(),
                     rng,
                 );
                 self.policy = policy;
@@ -306,6 +343,7 @@ where
                 .and_then(|t| scalar(t.min_j_sq_on))
                 .map(|on| on > 0.5),
             proximal,
+            multipliers: self.multipliers,
             policy_update_s,
             value_update_s,
         }

@@ -1,7 +1,7 @@
 //! # apo-core
 //!
-//! Absolute Policy Optimization (APO), Proximal APO (PAPO) and the baselines TRPO, PPO and
-//! A2C, written as Burn tensor graphs and generic over the Burn backend.
+//! Absolute Policy Optimization (APO), Proximal APO (PAPO) and the baselines TRPO, PPO, A2C,
+//! ESPO, AlphaPPO and V-MPO, written as Burn tensor graphs and generic over the Burn backend.
 //!
 //! * [`policy`], [`value`], [`distribution`] — the networks and their distributions;
 //! * [`buffer`] — the rollout buffer with one-step advantages, GAE and rewards-to-go;
@@ -10,7 +10,7 @@
 //! * [`fisher`] — the trust region's Fisher-vector product `Jᵀ M J v / N` by a forward-mode JVP
 //!   and one backward pass (double-backward Hessian-vector products, [`hvp`], for policies
 //!   without a JVP);
-//! * [`proximal`] — Adam with KL early stopping, and the value update;
+//! * [`proximal`] — Adam with early stopping (KL or ratio deviation), and the value update;
 //! * [`kernels`] — where the Fisher-vector products and the value fit run: Burn's graph, or
 //!   fused host kernels;
 //! * [`metrics`] — per-epoch statistics, the bound `J − k·Var` and its confidence;
@@ -48,9 +48,9 @@ pub use fisher::FisherOperator;
 pub use kernels::Kernels;
 pub use learner::{Learner, UpdateReport};
 pub use metrics::EpisodeStats;
-pub use objective::{ApoParams, HMax, Objective, ObjectiveTerms};
+pub use objective::{ApoParams, HMax, Multipliers, Objective, ObjectiveTerms, VmpoParams};
 pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
-pub use proximal::{ProximalConfig, ProximalReport};
+pub use proximal::{ProximalConfig, ProximalReport, ProximalStep};
 pub use tensor_batch::TensorBatch;
 pub use trust_region::{LineSearchOutcome, Rejections, TrustRegionConfig, TrustRegionReport};
 pub use value::{ValueConfig, ValueNet};

@@ -1,15 +1,18 @@
-//! The proximal step of PPO, PAPO and A2C (Adam with KL early stopping), and the value
-//! update shared by every algorithm (Adam on the mean squared error to the rewards-to-go).
+//! The proximal step of PPO, PAPO, A2C, ESPO, AlphaPPO and V-MPO (Adam with early stopping),
+//! and the value update shared by every algorithm (Adam on the mean squared error to the
+//! rewards-to-go).
 
 use burn::module::AutodiffModule;
 use burn::optim::{GradientsParams, Optimizer};
 use burn::tensor::backend::AutodiffBackend;
+use burn::tensor::Tensor;
 use rand::seq::SliceRandom;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::flat::to_host;
-use crate::objective::Objective;
+use crate::objective::vmpo::VmpoTerms;
+use crate::objective::{Multipliers, Objective};
 use crate::policy::Policy;
 use crate::tensor_batch::TensorBatch;
 use crate::validate::{check, ConfigError};
@@ -82,15 +85,37 @@ impl ProximalConfig {
     }
 }
 
+/// A proximal policy update: Adam's settings and the early stops.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProximalStep<'a> {
+    /// Adam's passes, and the approximate-KL stop `target_kl`.
+    pub update: &'a ProximalConfig,
+    /// ESPO's stop: before each step, stop once the mean absolute ratio deviation
+    /// `mean(|ratio − 1|)` of the step's (mini)batch exceeds this.
+    pub max_ratio_deviation: Option<f64>,
+}
+
+impl<'a> ProximalStep<'a> {
+    /// `update` with its KL stop only.
+    pub fn new(update: &'a ProximalConfig) -> Self {
+        Self {
+            update,
+            max_ratio_deviation: None,
+        }
+    }
+}
+
 /// What a proximal policy update did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProximalReport {
     /// Gradient steps taken.
     pub steps: usize,
-    /// Whether the KL early stop fired.
+    /// Whether an early stop (KL or ratio deviation) fired.
     pub stopped_early: bool,
-    /// The last approximate KL measured.
+    /// The last approximate KL measured (0 without a KL stop).
     pub approx_kl: f64,
+    /// The last mean absolute ratio deviation measured (with ESPO's stop).
+    pub ratio_deviation: Option<f64>,
 }
 
 /// The (mini)batches of one pass: `batch` split into shuffled chunks of `size` rows, or
@@ -120,14 +145,20 @@ pub(crate) fn minibatches(n: usize, size: Option<usize>, rng: &mut impl Rng) -> 
     })
 }
 
-/// Up to `config.iters` passes of Adam ascending `objective` on `batch`, stopping early
-/// when the approximate KL exceeds `config.target_kl`.
+/// Up to `step.update.iters` passes of Adam ascending `objective` on `batch`, stopping early
+/// before a step when the approximate KL `mean(logp_old − logp)` exceeds `target_kl` or the
+/// ratio deviation `mean(|ratio − 1|)` exceeds `max_ratio_deviation`.
+///
+/// With V-MPO's objective and `multipliers`, η and α are learned too: each step also moves
+/// them by their own Adam (at the same learning rate) down the loss's gradient, with
+/// [`Objective::Vmpo`]'s η and α replaced by theirs.
 pub fn proximal_update<AB, P, O>(
     mut policy: P,
     optim: &mut O,
     objective: &Objective,
     batch: &TensorBatch<AB>,
-    config: &ProximalConfig,
+    step: ProximalStep<'_>,
+    mut multipliers: Option<&mut Multipliers>,
     rng: &mut impl Rng,
 ) -> (P, ProximalReport)
 where
@@ -135,24 +166,46 @@ where
     P: Policy<AB> + AutodiffModule<AB>,
     O: Optimizer<P, AB>,
 {
+    let config = step.update;
     let mut report = ProximalReport {
         steps: 0,
         stopped_early: false,
         approx_kl: 0.0,
+        ratio_deviation: None,
     };
     for _ in 0..config.iters {
         for part in &split(batch, config.minibatch_size, rng) {
             let dist = policy.distribution(part.obs.clone());
-            if let Some(target) = config.target_kl {
-                let logp = dist.log_prob(part.actions.clone());
-                report.approx_kl = to_host((part.logp_old.clone() - logp).mean().detach())[0];
-                if report.approx_kl > target {
-                    report.stopped_early = true;
+            if config.target_kl.is_some() || step.max_ratio_deviation.is_some() {
+                let log_ratio =
+                    dist.log_prob(part.actions.clone()).detach() - part.logp_old.clone();
+                if let Some(target) = config.target_kl {
+                    report.approx_kl = to_host(log_ratio.clone().neg().mean())[0];
+                    report.stopped_early |= report.approx_kl > target;
+                }
+                if let Some(max) = step.max_ratio_deviation {
+                    let deviation = to_host(log_ratio.exp().sub_scalar(1.0).abs().mean())[0];
+                    report.ratio_deviation = Some(deviation);
+                    report.stopped_early |= deviation > max;
+                }
+                if report.stopped_early {
                     return (policy, report);
                 }
             }
-            let loss = objective.evaluate(&dist, part).objective.neg();
-            let grads = GradientsParams::from_grads(loss.backward(), &policy);
+            let grads = match (objective, multipliers.as_deref_mut()) {
+                (Objective::Vmpo(params), Some(m)) => {
+                    let (eta, alpha) = m.leaves::<AB>(&part.adv.device());
+                    let logp = dist.log_prob(part.actions.clone());
+                    let terms =
+                        VmpoTerms::new(&dist, logp, part, params, eta.clone(), alpha.clone());
+                    let grads = terms.loss().backward();
+                    let grad = |t: Tensor<AB, 1>| t.grad(&grads).map_or(0.0, |g| to_host(g)[0]);
+                    m.step(grad(eta), grad(alpha), config.lr);
+                    grads
+                }
+                _ => objective.evaluate(&dist, part).objective.neg().backward(),
+            };
+            let grads = GradientsParams::from_grads(grads, &policy);
             policy = optim.step(config.lr, policy, grads);
             report.steps += 1;
         }

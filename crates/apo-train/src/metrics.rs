@@ -64,8 +64,17 @@ pub struct ProgressRow {
     /// Whether `min_J_sq`'s switch is on at the new policy (APO/PAPO).
     #[serde(default)]
     pub min_j_sq_on: Option<bool>,
-    /// Adam steps taken (PAPO/PPO/A2C).
+    /// Adam steps taken (proximal algorithms).
     pub pi_steps: Option<usize>,
+    /// The last mean absolute ratio deviation `mean(|ratio − 1|)` measured by ESPO's stop.
+    #[serde(default)]
+    pub ratio_deviation: Option<f64>,
+    /// V-MPO's temperature η after the update.
+    #[serde(default)]
+    pub eta: Option<f64>,
+    /// V-MPO's Lagrange multiplier α after the update.
+    #[serde(default)]
+    pub alpha: Option<f64>,
     /// Episodes ended by a simulator instability in this epoch.
     pub unstable_episodes: usize,
     /// Environment steps per second over the epoch (rollout and update).
@@ -133,6 +142,9 @@ impl ProgressRow {
             bias: report.bias,
             min_j_sq_on: report.min_j_sq_on,
             pi_steps: report.proximal.map(|p| p.steps),
+            ratio_deviation: report.proximal.and_then(|p| p.ratio_deviation),
+            eta: report.multipliers.map(|m| m.eta),
+            alpha: report.multipliers.map(|m| m.alpha),
             unstable_episodes,
             steps_per_s: times.steps_per_s,
             time_s: times.time_s,

@@ -148,3 +148,38 @@ fn any_policy_family_trains_through_the_loop_with_the_burn_actor() {
         "the policy learned"
     );
 }
+
+#[test]
+fn espo_alphappo_and_vmpo_train_on_cartpole_and_pendulum_without_nan() {
+    let stop = AtomicBool::new(false);
+    for algo in [Algorithm::Espo, Algorithm::AlphaPpo, Algorithm::Vmpo] {
+        for env in ["CartPole-v1", "Pendulum-v1"] {
+            let what = format!("{algo} on {env}");
+            let config = small(algo, env, 3, 400);
+            let mut trainer =
+                Trainer::<NdArray, _, _>::mlp(config, &Default::default(), 1).expect("valid");
+            let mut epochs = 0;
+            while let Some(epoch) = trainer.epoch(&stop, &mut |_| {}).expect("finite") {
+                epochs += 1;
+                let row = &epoch.row;
+                for (name, v) in [
+                    ("kl", row.kl),
+                    ("loss_pi", row.loss_pi),
+                    ("mean_surr", row.mean_surr),
+                    ("entropy", row.entropy),
+                    ("loss_v", row.loss_v),
+                ] {
+                    assert!(v.is_finite(), "{what}, epoch {epochs}: {name} = {v}");
+                }
+                assert!(row.pi_steps >= Some(1), "{what}: {row:?}");
+                assert!(row.episodes > 0, "{what}: no episode ended");
+                assert_eq!(row.ratio_deviation.is_some(), algo == Algorithm::Espo);
+                assert_eq!(row.eta.is_some(), algo == Algorithm::Vmpo);
+                for m in [row.eta, row.alpha].into_iter().flatten() {
+                    assert!(m.is_finite() && m >= 1e-8, "{what}: multiplier {m}");
+                }
+            }
+            assert_eq!(epochs, 3, "{what}");
+        }
+    }
+}

@@ -138,7 +138,8 @@ fn environment_threads_do_not_change_the_run() {
 #[test]
 fn resumed_run_matches_uninterrupted_run() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    for algo in ["trpo", "papo"] {
+    // V-MPO: its learned η and α (columns eta, alpha) continue from the checkpoint
+    for algo in ["trpo", "papo", "vmpo"] {
         let whole = tmp.path().join(format!("{algo}-whole"));
         train(&whole, algo, &["--set", "normalize_obs=true"]);
         let parts = tmp.path().join(format!("{algo}-parts"));

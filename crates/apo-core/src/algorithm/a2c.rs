@@ -2,9 +2,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{AlgorithmConfig, Common, ConfigError, PolicyStep, Settings};
+use super::{policy_update_docs, AlgorithmConfig, Common, ConfigError, PolicyStep, Settings};
 use crate::objective::Objective;
-use crate::proximal::ProximalConfig;
+use crate::proximal::{ProximalConfig, ProximalStep};
 
 /// A2C's settings, `[algo.a2c]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -38,13 +38,12 @@ impl Settings for A2cConfig {
     }
 
     fn policy_step(&self) -> PolicyStep<'_> {
-        PolicyStep::Proximal(&self.policy_update)
+        PolicyStep::Proximal(ProximalStep::new(&self.policy_update))
     }
 
     fn key_docs(&self) -> Vec<(String, &'static str)> {
         let mut docs = Common::key_docs();
-        docs.push(("policy_update".to_string(), "the policy's Adam update"));
-        docs.extend(ProximalConfig::key_docs("policy_update"));
+        docs.extend(policy_update_docs());
         docs
     }
 }

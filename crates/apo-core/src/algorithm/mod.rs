@@ -14,10 +14,13 @@
 //! of names and every dispatch are generated from it.
 
 mod a2c;
+mod alpha_ppo;
 mod apo;
+mod espo;
 mod papo;
 mod ppo;
 mod trpo;
+mod vmpo;
 
 use std::fmt;
 use std::str::FromStr;
@@ -26,16 +29,19 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::objective::{ApoParams, HMax, Objective};
-use crate::proximal::ProximalConfig;
+use crate::proximal::{ProximalConfig, ProximalStep};
 use crate::trust_region::TrustRegionConfig;
 pub use crate::validate::ConfigError;
 pub(crate) use crate::validate::{check, finite_nonneg};
 
 pub use a2c::A2cConfig;
+pub use alpha_ppo::AlphaPpoConfig;
 pub use apo::ApoConfig;
+pub use espo::EspoConfig;
 pub use papo::PapoConfig;
 pub use ppo::PpoConfig;
 pub use trpo::TrpoConfig;
+pub use vmpo::VmpoConfig;
 
 /// The probability factor `k` of the reported bound `J − k·Var` for algorithms that have none
 /// of their own (the paper's `k`).
@@ -46,8 +52,8 @@ pub const PAPER_PROBABILITY_FACTOR: f64 = 7.0;
 pub enum PolicyStep<'a> {
     /// Conjugate gradient on Fisher-vector products, step scaling, backtracking line search.
     TrustRegion(&'a TrustRegionConfig),
-    /// Adam passes with KL early stopping.
-    Proximal(&'a ProximalConfig),
+    /// Adam passes with early stopping (KL, or ESPO's ratio deviation).
+    Proximal(ProximalStep<'a>),
 }
 
 /// The settings every algorithm has: the return estimation and the critic's update.
@@ -184,6 +190,13 @@ impl Penalty {
     ];
 }
 
+/// The documentation of a proximal policy update's keys, `policy_update.*`.
+pub(crate) fn policy_update_docs() -> Vec<(String, &'static str)> {
+    let mut docs = vec![("policy_update".to_string(), "the policy's Adam update")];
+    docs.extend(ProximalConfig::key_docs("policy_update"));
+    docs
+}
+
 /// Validates a clip ε ∈ (0, 1).
 pub(crate) fn check_clip(clip: f64) -> Result<(), ConfigError> {
     check(clip > 0.0 && clip < 1.0, "clip", clip, "must be in (0, 1)")
@@ -300,6 +313,9 @@ algorithms! {
     Trpo(TrpoConfig) = "trpo",
     Ppo(PpoConfig) = "ppo",
     A2c(A2cConfig) = "a2c",
+    Espo(EspoConfig) = "espo",
+    AlphaPpo(AlphaPpoConfig) = "alphappo",
+    Vmpo(VmpoConfig) = "vmpo",
 }
 
 impl fmt::Display for Algorithm {

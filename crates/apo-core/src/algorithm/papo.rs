@@ -4,10 +4,13 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{check_clip, AlgorithmConfig, Common, ConfigError, Penalty, PolicyStep, Settings};
+use super::{
+    check_clip, policy_update_docs, AlgorithmConfig, Common, ConfigError, Penalty, PolicyStep,
+    Settings,
+};
 use super::{HMaxMode, CLIP_DOC};
 use crate::objective::Objective;
-use crate::proximal::ProximalConfig;
+use crate::proximal::{ProximalConfig, ProximalStep};
 
 /// PAPO's settings, `[algo.papo]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -67,7 +70,7 @@ impl Settings for PapoConfig {
     }
 
     fn policy_step(&self) -> PolicyStep<'_> {
-        PolicyStep::Proximal(&self.policy_update)
+        PolicyStep::Proximal(ProximalStep::new(&self.policy_update))
     }
 
     fn probability_factor(&self) -> Option<f64> {
@@ -78,8 +81,7 @@ impl Settings for PapoConfig {
         let mut docs = Common::key_docs();
         docs.extend(Penalty::KEY_DOCS.map(|(k, d)| (k.to_string(), d)));
         docs.push((CLIP_DOC.0.to_string(), CLIP_DOC.1));
-        docs.push(("policy_update".to_string(), "the policy's Adam update"));
-        docs.extend(ProximalConfig::key_docs("policy_update"));
+        docs.extend(policy_update_docs());
         docs
     }
 }

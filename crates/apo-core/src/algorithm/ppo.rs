@@ -3,9 +3,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{check_clip, AlgorithmConfig, Common, ConfigError, PolicyStep, Settings, CLIP_DOC};
+use super::{
+    check_clip, policy_update_docs, AlgorithmConfig, Common, ConfigError, PolicyStep, Settings,
+    CLIP_DOC,
+};
 use crate::objective::Objective;
-use crate::proximal::ProximalConfig;
+use crate::proximal::{ProximalConfig, ProximalStep};
 
 /// PPO's settings, `[algo.ppo]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -42,14 +45,13 @@ impl Settings for PpoConfig {
     }
 
     fn policy_step(&self) -> PolicyStep<'_> {
-        PolicyStep::Proximal(&self.policy_update)
+        PolicyStep::Proximal(ProximalStep::new(&self.policy_update))
     }
 
     fn key_docs(&self) -> Vec<(String, &'static str)> {
         let mut docs = Common::key_docs();
         docs.push((CLIP_DOC.0.to_string(), CLIP_DOC.1));
-        docs.push(("policy_update".to_string(), "the policy's Adam update"));
-        docs.extend(ProximalConfig::key_docs("policy_update"));
+        docs.extend(policy_update_docs());
         docs
     }
 }

@@ -2,11 +2,15 @@
 //!
 //! * [`apo`] — APO's surrogate lower bound of `B_k = J − k·V` (trust region).
 //! * [`papo`] — the same with PPO-style clipping (proximal).
-//! * TRPO's surrogate `mean(ratio · adv)`, PPO's clipped surrogate and A2C's
-//!   `mean(logp · adv)` are [`Objective::Trpo`], [`Objective::Ppo`] and [`Objective::A2c`].
+//! * [`vmpo`] — V-MPO's weighted log-likelihood with its temperature and trust-region losses.
+//! * TRPO's (and ESPO's) surrogate `mean(ratio · adv)`, PPO's clipped surrogate, A2C's
+//!   `mean(logp · adv)` and AlphaPPO's `(1 − β) mean(ratio · adv) − β mean_s D_α(π_old ‖ π_θ)`
+//!   are [`Objective::Trpo`], [`Objective::Ppo`], [`Objective::A2c`] and
+//!   [`Objective::AlphaPpo`].
 
 pub mod apo;
 pub mod papo;
+pub mod vmpo;
 
 use burn::tensor::backend::Backend;
 use burn::tensor::Tensor;
@@ -14,6 +18,7 @@ use burn::tensor::Tensor;
 use crate::distribution::DistParams;
 use crate::tensor_batch::TensorBatch;
 pub use apo::{ApoParams, HMax};
+pub use vmpo::{Multipliers, VmpoParams};
 
 /// Which objective an update maximizes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,6 +41,16 @@ pub enum Objective {
     },
     /// A2C's policy-gradient objective `mean(logp · adv)`.
     A2c,
+    /// AlphaPPO: `(1 − β) · mean(ratio · adv) − β · mean_s D_α(π_old(·|s) ‖ π_θ(·|s))`
+    /// ([`DistParams::alpha_divergence_from`]).
+    AlphaPpo {
+        /// α ∈ (0, 1) of the divergence.
+        alpha: f64,
+        /// The divergence's weight β ∈ [0, 1].
+        beta: f64,
+    },
+    /// V-MPO's `−loss` ([`vmpo`]), with η and α as constants.
+    Vmpo(VmpoParams),
 }
 
 /// The value of an objective and its named terms, each `[1]`.
@@ -43,7 +58,8 @@ pub enum Objective {
 pub struct ObjectiveTerms<B: Backend> {
     /// The objective to maximize.
     pub objective: Tensor<B, 1>,
-    /// The surrogate `mean_surr` (clipped for PPO/PAPO; `mean(logp · adv)` for A2C).
+    /// The surrogate `mean_surr` (clipped for PPO/PAPO; `mean(logp · adv)` for A2C; the
+    /// weighted log-likelihood `Σ ψ · logp(top)` for V-MPO).
     pub mean_surr: Tensor<B, 1>,
     /// The MeanVariance term (APO/PAPO with `k > 0`).
     pub mean_variance: Option<Tensor<B, 1>>,
@@ -76,6 +92,31 @@ impl Objective {
             Objective::Ppo { clip } => {
                 let ratio = apo::ratio(logp, batch.logp_old.clone());
                 Self::surrogate_only(papo::clipped_mean_surr(ratio, batch.adv.clone(), clip))
+            }
+            Objective::AlphaPpo { alpha, beta } => {
+                let ratio = apo::ratio(logp, batch.logp_old.clone());
+                let mean_surr = apo::mean_surr(ratio, batch.adv.clone());
+                let divergence = dist.alpha_divergence_from(&batch.dist_old, alpha).mean();
+                ObjectiveTerms {
+                    objective: mean_surr.clone().mul_scalar(1.0 - beta)
+                        - divergence.mul_scalar(beta),
+                    ..Self::surrogate_only(mean_surr)
+                }
+            }
+            Objective::Vmpo(params) => {
+                let device = batch.adv.device();
+                let terms = vmpo::VmpoTerms::new(
+                    dist,
+                    logp,
+                    batch,
+                    &params,
+                    Tensor::full([1], params.eta, &device),
+                    Tensor::full([1], params.alpha, &device),
+                );
+                ObjectiveTerms {
+                    objective: terms.loss().neg(),
+                    ..Self::surrogate_only(terms.policy_loss.neg())
+                }
             }
             Objective::Apo(params) => Self::absolute(&params, None, logp, dist, batch),
             Objective::Papo { params, clip } => {

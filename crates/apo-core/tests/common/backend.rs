@@ -3,7 +3,7 @@
 //! `f64` on the host (see `common/mod.rs`), never by the backend under test.
 
 use apo_core::hvp::{gradient, hessian_vector_product, Autodiff2};
-use apo_core::objective::{apo, papo, ApoParams, HMax, Objective};
+use apo_core::objective::{apo, papo, ApoParams, HMax, Objective, VmpoParams};
 use apo_core::policy::{MlpPolicyConfig, Policy, PolicyFamily};
 use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
@@ -260,6 +260,46 @@ pub fn objective_cases() -> Vec<(&'static str, Objective, f64, Option<bool>)> {
         ("a2c", Objective::A2c, 0.0, None),
         ("ppo", Objective::Ppo { clip: 0.2 }, 0.0, None),
         (
+            "alphappo",
+            Objective::AlphaPpo {
+                alpha: 0.5,
+                beta: 0.5,
+            },
+            0.0,
+            None,
+        ),
+        (
+            "alphappo α 0.2, β 0.8",
+            Objective::AlphaPpo {
+                alpha: 0.2,
+                beta: 0.8,
+            },
+            0.0,
+            None,
+        ),
+        (
+            "vmpo",
+            Objective::Vmpo(VmpoParams {
+                eps_eta: 0.008,
+                eps_alpha: 0.05,
+                eta: 1.0,
+                alpha: 5.0,
+            }),
+            0.0,
+            None,
+        ),
+        (
+            "vmpo small η",
+            Objective::Vmpo(VmpoParams {
+                eps_eta: 0.1,
+                eps_alpha: 0.01,
+                eta: 0.3,
+                alpha: 0.7,
+            }),
+            0.0,
+            None,
+        ),
+        (
             "apo paper params (switch off)",
             Objective::Apo(paper),
             0.0,
@@ -440,7 +480,7 @@ pub fn reference_gradient(
         );
     }
     let g = fd_gradient(
-        |th| ref_objective(cfg, obj, th, batch).objective,
+        |th| ref_objective(cfg, obj, th, batch).differentiated,
         theta,
         1e-6,
     );

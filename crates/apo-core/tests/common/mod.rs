@@ -345,6 +345,90 @@ impl RefDist {
     }
 }
 
+impl RefDist {
+    /// `D_α(old ‖ self)` per state: `(∫ p_old^α p^(1−α) − 1) / (α(α − 1))`, the Gaussian
+    /// closed form per dimension summed over dimensions, the categorical sum directly.
+    pub fn alpha_divergence_from(&self, old: &RefDist, alpha: f64) -> Vec<f64> {
+        let scale = 1.0 / (alpha * (alpha - 1.0));
+        match (old, self) {
+            (
+                RefDist::Gaussian {
+                    mean: m0,
+                    log_std: s0,
+                },
+                RefDist::Gaussian {
+                    mean: m1,
+                    log_std: s1,
+                },
+            ) => (0..m0.len())
+                .map(|n| {
+                    (0..m0[n].len())
+                        .map(|i| {
+                            let (sig0, sig1) = (s0[n][i].exp(), s1[n][i].exp());
+                            gaussian_alpha_divergence(m0[n][i], sig0, m1[n][i], sig1, alpha)
+                        })
+                        .sum()
+                })
+                .collect(),
+            (RefDist::Categorical { logits: l0 }, RefDist::Categorical { logits: l1 }) => (0..l0
+                .len())
+                .map(|n| {
+                    let (p, q) = (softmax(&l0[n]), softmax(&l1[n]));
+                    let overlap: f64 = p
+                        .iter()
+                        .zip(&q)
+                        .map(|(pi, qi)| pi.powf(alpha) * qi.powf(1.0 - alpha))
+                        .sum();
+                    (overlap - 1.0) * scale
+                })
+                .collect(),
+            _ => panic!("α-divergence across families"),
+        }
+    }
+}
+
+/// The closed form of `D_α(N(μ0, σ0²) ‖ N(μ1, σ1²))`:
+/// `(σ0^(1−α) σ1^α / s · exp(α(α−1)(μ0 − μ1)² / (2 s²)) − 1) / (α(α − 1))`,
+/// `s² = α σ1² + (1 − α) σ0²`.
+pub fn gaussian_alpha_divergence(mu0: f64, sig0: f64, mu1: f64, sig1: f64, alpha: f64) -> f64 {
+    let s2 = alpha * sig1 * sig1 + (1.0 - alpha) * sig0 * sig0;
+    let c = sig0.powf(1.0 - alpha) * sig1.powf(alpha) / s2.sqrt()
+        * (alpha * (alpha - 1.0) * (mu0 - mu1).powi(2) / (2.0 * s2)).exp();
+    (c - 1.0) / (alpha * (alpha - 1.0))
+}
+
+/// V-MPO's loss terms by hand: `(policy_loss, temperature_loss, trust_region_loss)` for the
+/// log-probabilities `logp` of the batch's actions and the mean KL `kl`, with the rows of
+/// the top half chosen here by sorting.
+pub fn ref_vmpo(
+    p: &apo_core::objective::VmpoParams,
+    logp: &[f64],
+    kl: f64,
+    adv: &[f64],
+) -> (f64, f64, f64) {
+    let mut rows: Vec<usize> = (0..adv.len()).collect();
+    rows.sort_by(|&a, &b| adv[b].partial_cmp(&adv[a]).expect("finite"));
+    let top = &rows[..(adv.len() / 2).max(1)];
+    let max = top
+        .iter()
+        .map(|&i| adv[i])
+        .fold(f64::NEG_INFINITY, f64::max);
+    let w: Vec<f64> = top
+        .iter()
+        .map(|&i| ((adv[i] - max) / p.eta).exp())
+        .collect();
+    let z: f64 = w.iter().sum();
+    let policy = -top
+        .iter()
+        .zip(&w)
+        .map(|(&i, wi)| wi / z * logp[i])
+        .sum::<f64>();
+    let mean_exp = top.iter().map(|&i| (adv[i] / p.eta).exp()).sum::<f64>() / top.len() as f64;
+    let temperature = p.eta * p.eps_eta + p.eta * mean_exp.ln();
+    let trust = p.alpha * (p.eps_alpha - kl) + p.alpha * kl;
+    (policy, temperature, trust)
+}
+
 pub fn softmax(logits: &[f64]) -> Vec<f64> {
     let m = logits.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let e: Vec<f64> = logits.iter().map(|l| (l - m).exp()).collect();
@@ -567,6 +651,10 @@ pub struct RefTerms {
     /// The smallest distance of the data to a kink of the objective (abs, min, clip):
     /// finite differences need it to be larger than their step's effect.
     pub kink_margin: f64,
+    /// The function whose θ-gradient the objective's graph carries: the objective itself,
+    /// except where stop-gradients make them differ (V-MPO: `sg(KL)` and `sg(α)` leave
+    /// `−(policy + α · KL)` plus terms constant in θ).
+    pub differentiated: f64,
 }
 
 fn clampf(x: f64, lo: f64, hi: f64) -> f64 {
@@ -577,7 +665,9 @@ fn clampf(x: f64, lo: f64, hi: f64) -> f64 {
 /// `logp` and whose mean KL from the batch's `dist_old` is `kl_mean`.
 // written index by index, as the paper's sums over the batch
 #[allow(clippy::needless_range_loop)]
-pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> RefTerms {
+pub fn ref_terms_dist(obj: &Objective, dist: &RefDist, b: &RefBatch) -> RefTerms {
+    let logp = dist.log_prob(&b.actions);
+    let kl_mean = mean(&dist.kl_from(&b.dist_old));
     let n = b.len();
     let ratio: Vec<f64> = (0..n).map(|i| (logp[i] - b.logp_old[i]).exp()).collect();
     let mut kink = f64::INFINITY;
@@ -600,6 +690,7 @@ pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> R
         min_j_sq: None,
         switch_margin: None,
         kink_margin: kink,
+        differentiated: ms,
     };
     match *obj {
         Objective::A2c => only(
@@ -613,6 +704,24 @@ pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> R
         Objective::Ppo { clip } => {
             let ms = surr_clipped(clip, &mut kink);
             only(ms, kink)
+        }
+        Objective::AlphaPpo { alpha, beta } => {
+            let ms = mean(&(0..n).map(|i| ratio[i] * b.adv[i]).collect::<Vec<_>>());
+            let div = mean(&dist.alpha_divergence_from(&b.dist_old, alpha));
+            let objective = (1.0 - beta) * ms - beta * div;
+            RefTerms {
+                objective,
+                differentiated: objective,
+                ..only(ms, kink)
+            }
+        }
+        Objective::Vmpo(p) => {
+            let (policy, temperature, trust) = ref_vmpo(&p, &logp, kl_mean, &b.adv);
+            RefTerms {
+                objective: -(policy + temperature + trust),
+                differentiated: -(policy + p.alpha * kl_mean),
+                ..only(-policy, kink)
+            }
         }
         Objective::Apo(p) | Objective::Papo { params: p, .. } => {
             let clip = match *obj {
@@ -683,16 +792,10 @@ pub fn ref_terms(obj: &Objective, logp: &[f64], kl_mean: f64, b: &RefBatch) -> R
                 min_j_sq: Some(min_j_sq),
                 switch_margin: Some(margin),
                 kink_margin: kink,
+                differentiated: ms - p.k * (mv + vm),
             }
         }
     }
-}
-
-/// The objective's terms for the distributions `dist`.
-pub fn ref_terms_dist(obj: &Objective, dist: &RefDist, b: &RefBatch) -> RefTerms {
-    let logp = dist.log_prob(&b.actions);
-    let kl = mean(&dist.kl_from(&b.dist_old));
-    ref_terms(obj, &logp, kl, b)
 }
 
 /// The objective of the MLP policy with parameters `theta`.

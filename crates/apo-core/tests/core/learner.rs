@@ -164,7 +164,7 @@ fn one_update_per_algorithm_reports_consistent_finite_numbers() {
                 1e-9,
                 1.0,
             );
-            if algo != Algorithm::A2c {
+            if !matches!(algo, Algorithm::A2c | Algorithm::Vmpo) {
                 // ratio 1 (up to the f32 storage of logp): mean_surr = mean(adv) ≈ 0 (normalized)
                 assert_close(
                     &format!("{what}: mean_surr = mean(adv)"),
@@ -232,6 +232,20 @@ fn one_update_per_algorithm_reports_consistent_finite_numbers() {
                     let p = report.proximal.expect("proximal report");
                     assert!(report.line_search.is_none());
                     assert!(p.steps >= 1, "{what}: {p:?}");
+                    // ESPO measures its ratio deviation; V-MPO learns η and α
+                    assert_eq!(
+                        p.ratio_deviation.is_some(),
+                        algo == Algorithm::Espo,
+                        "{what}"
+                    );
+                    if let Some(d) = p.ratio_deviation {
+                        assert!(d.is_finite() && d >= 0.0, "{what}: {d}");
+                    }
+                    assert_eq!(report.multipliers.is_some(), algo == Algorithm::Vmpo);
+                    if let Some(m) = report.multipliers {
+                        assert!(m.eta != 1.0 && m.alpha != 5.0, "{what}: {m:?}");
+                        assert_eq!(learner.multipliers(), Some(&m));
+                    }
                     assert_ne!(theta, theta_j, "{what}: policy unchanged");
                     eprintln!("{what}: {p:?}, KL {:.2e}", report.kl);
                 }
@@ -257,7 +271,53 @@ fn config_validation_names_the_bad_field() {
         f(&mut c);
         AlgoConfig::Papo(c)
     };
+    let defaults = |algo| AlgoConfig::paper_defaults(algo);
+    let with = |algo, f: &dyn Fn(&mut AlgoConfig)| {
+        let mut c = defaults(algo);
+        f(&mut c);
+        c
+    };
     let cases = vec![
+        (
+            "delta",
+            with(Algorithm::Espo, &|c| {
+                if let AlgoConfig::Espo(e) = c {
+                    e.delta = 0.0
+                }
+            }),
+        ),
+        (
+            "alpha",
+            with(Algorithm::AlphaPpo, &|c| {
+                if let AlgoConfig::AlphaPpo(a) = c {
+                    a.alpha = 1.0
+                }
+            }),
+        ),
+        (
+            "beta",
+            with(Algorithm::AlphaPpo, &|c| {
+                if let AlgoConfig::AlphaPpo(a) = c {
+                    a.beta = 1.5
+                }
+            }),
+        ),
+        (
+            "eta_init",
+            with(Algorithm::Vmpo, &|c| {
+                if let AlgoConfig::Vmpo(v) = c {
+                    v.eta_init = 0.0
+                }
+            }),
+        ),
+        (
+            "eps_alpha",
+            with(Algorithm::Vmpo, &|c| {
+                if let AlgoConfig::Vmpo(v) = c {
+                    v.eps_alpha = -1.0
+                }
+            }),
+        ),
         ("gamma", apo(&|c| c.gamma = 1.0)),
         ("k", apo(&|c| c.k = -1.0)),
         ("trust_region.max_kl", apo(&|c| c.trust_region.max_kl = 0.0)),
@@ -300,6 +360,18 @@ fn shorten(config: &mut AlgoConfig) {
             c.value_update.iters = 10;
         }
         AlgoConfig::A2c(c) => {
+            c.policy_update.iters = 10;
+            c.value_update.iters = 10;
+        }
+        AlgoConfig::Espo(c) => {
+            c.policy_update.iters = 10;
+            c.value_update.iters = 10;
+        }
+        AlgoConfig::AlphaPpo(c) => {
+            c.policy_update.iters = 10;
+            c.value_update.iters = 10;
+        }
+        AlgoConfig::Vmpo(c) => {
             c.policy_update.iters = 10;
             c.value_update.iters = 10;
         }

@@ -5,8 +5,11 @@ use crate::common;
 
 use apo_core::flat::{flatten, to_host};
 use apo_core::objective::{ApoParams, HMax, Objective};
+use apo_core::objective::{Multipliers, VmpoParams};
 use apo_core::policy::{MlpPolicy, MlpPolicyConfig, PolicyFamily};
-use apo_core::proximal::{proximal_update, value_update, ProximalConfig, ProximalReport};
+use apo_core::proximal::{
+    proximal_update, value_update, ProximalConfig, ProximalReport, ProximalStep,
+};
 use apo_core::value::{ValueConfig, ValueNet};
 use burn::backend::Autodiff;
 use burn::optim::AdamConfig;
@@ -36,6 +39,16 @@ fn setup(seed: u64) -> Setup {
 
 /// Runs `proximal_update` from θ_j; returns the new parameters and the report.
 fn run(s: &Setup, objective: &Objective, config: &ProximalConfig) -> (Vec<f64>, ProximalReport) {
+    run_step(s, objective, ProximalStep::new(config), None)
+}
+
+/// [`run`] with ESPO's stop and V-MPO's multipliers.
+fn run_step(
+    s: &Setup,
+    objective: &Objective,
+    step: ProximalStep<'_>,
+    multipliers: Option<&mut Multipliers>,
+) -> (Vec<f64>, ProximalReport) {
     let device = ndarray_f64();
     let policy: MlpPolicy<Ad> =
         apo_core::flat::unflatten(s.cfg.init::<Ad>(&device), t1::<Ad>(&s.theta_j, &device));
@@ -48,7 +61,8 @@ fn run(s: &Setup, objective: &Objective, config: &ProximalConfig) -> (Vec<f64>, 
         &mut optim,
         objective,
         &tb,
-        config,
+        step,
+        multipliers,
         &mut StdRng::seed_from_u64(0),
     );
     (to_host(flatten(&policy)), report)
@@ -163,6 +177,115 @@ fn tiny_target_kl_stops_early() {
     };
     let (_, report) = run(&s, &obj, &config);
     assert_eq!((report.steps, report.stopped_early), (10, false));
+}
+
+/// `mean(|ratio − 1|)` of the policy `theta` on the batch, computed here.
+fn ratio_deviation(s: &Setup, theta: &[f64]) -> f64 {
+    let logp = ref_policy(&s.cfg, theta, &s.batch.obs).log_prob(&s.batch.actions);
+    mean(
+        &(0..s.batch.len())
+            .map(|i| ((logp[i] - s.batch.logp_old[i]).exp() - 1.0).abs())
+            .collect::<Vec<_>>(),
+    )
+}
+
+#[test]
+fn espo_stops_once_the_ratio_deviation_exceeds_delta() {
+    let s = setup(5);
+    let config = ProximalConfig {
+        lr: 3e-3,
+        iters: 80,
+        target_kl: None,
+        minibatch_size: None,
+    };
+    let espo = |delta: f64, config: &ProximalConfig| {
+        let step = ProximalStep {
+            update: config,
+            max_ratio_deviation: Some(delta),
+        };
+        run_step(&s, &Objective::Trpo, step, None)
+    };
+    let (theta, report) = espo(0.05, &config);
+    assert!(
+        report.stopped_early && report.steps > 1 && report.steps < 80,
+        "{report:?}"
+    );
+    // the reported deviation is the returned policy's, which is the first one over δ
+    let deviation = report.ratio_deviation.expect("measured");
+    assert_close(
+        "ratio deviation",
+        deviation,
+        ratio_deviation(&s, &theta),
+        1e-8,
+        1e-10,
+    );
+    assert!(deviation > 0.05, "{deviation}");
+    assert_eq!(report.approx_kl, 0.0, "no KL stop configured");
+    // one step fewer stays within δ
+    let fewer = ProximalConfig {
+        iters: report.steps - 1,
+        ..config
+    };
+    let (theta, report) = espo(0.05, &fewer);
+    assert!(!report.stopped_early, "{report:?}");
+    assert!(ratio_deviation(&s, &theta) <= 0.05);
+    // a huge δ never stops
+    let ten = ProximalConfig {
+        iters: 10,
+        ..config
+    };
+    let (_, report) = espo(1e6, &ten);
+    assert_eq!((report.steps, report.stopped_early), (10, false));
+}
+
+#[test]
+fn vmpo_update_learns_its_multipliers() {
+    let s = setup(6);
+    let config = ProximalConfig {
+        lr: 1e-2,
+        iters: 5,
+        target_kl: None,
+        minibatch_size: None,
+    };
+    let params = VmpoParams {
+        eps_eta: 0.008,
+        eps_alpha: 0.05,
+        eta: 1.0,
+        alpha: 5.0,
+    };
+    let mut m = Multipliers::new(1.0, 5.0);
+    let (theta, report) = run_step(
+        &s,
+        &Objective::Vmpo(params),
+        ProximalStep::new(&config),
+        Some(&mut m),
+    );
+    assert_eq!(report.steps, 5);
+    // at θ_j the KL is 0 < ε_α: ∂loss/∂α = ε_α − KL > 0 while the policy stays close, so
+    // Adam lowers α by about lr per step; the temperature's gradient
+    // ε_η + log mean exp(a/η) − Σψa/η is negative for spread-out advantages at η = 1, so η rises
+    assert!(m.alpha < 5.0 && m.alpha > 5.0 - 5.5 * 1e-2, "{m:?}");
+    assert!(m.eta > 1.0 && m.eta < 1.0 + 5.5 * 1e-2, "{m:?}");
+    // the policy moved toward the top half's actions: their weighted log-likelihood rose
+    let weighted = |theta: &[f64]| {
+        let logp = ref_policy(&s.cfg, theta, &s.batch.obs).log_prob(&s.batch.actions);
+        -ref_vmpo(&params, &logp, 0.0, &s.batch.adv).0
+    };
+    assert!(
+        weighted(&theta) > weighted(&s.theta_j),
+        "weighted log-likelihood fell"
+    );
+    // without multipliers the objective's η and α stay constants
+    let (theta_fixed, _) = run_step(
+        &s,
+        &Objective::Vmpo(params),
+        ProximalStep::new(&config),
+        None,
+    );
+    assert_ne!(
+        theta_fixed, theta,
+        "learned multipliers change the policy's steps"
+    );
 }
 
 #[test]
