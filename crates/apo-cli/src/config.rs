@@ -776,7 +776,7 @@ mod tests {
         let err = build(Algorithm::Trpo, "algo.policy_update.minibatch_size=64").unwrap_err();
         assert!(
             err.to_string()
-                .contains("(it is a setting of papo, ppo, a2c)"),
+                .contains("(it is a setting of papo, ppo, a2c, espo, alphappo, vmpo)"),
             "{err}"
         );
         // another algorithm's section

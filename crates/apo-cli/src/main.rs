@@ -571,11 +571,12 @@ fn sweep(args: SweepArgs) -> anyhow::Result<ExitCode> {
         args.last
     );
     let mut previous: Option<(&str, Algorithm)> = None;
+    let width = Algorithm::ALL.iter().map(|a| a.name().len()).max().unwrap_or(0);
     for r in &results {
         let best = previous != Some((r.env.as_str(), r.algo));
         previous = Some((r.env.as_str(), r.algo));
         println!(
-            "{} {:<12} {:<6} {:<40} {:>10.2} ± {:<8.2} ({} seeds)",
+            "{} {:<12} {:<width$} {:<40} {:>10.2} ± {:<8.2} ({} seeds)",
             if best { "*" } else { " " },
             r.env,
             r.algo.name(),
@@ -800,8 +801,13 @@ fn list() -> anyhow::Result<()> {
     }
     println!();
     println!("algorithms:");
+    let width = Algorithm::ALL
+        .iter()
+        .map(|a| a.name().len())
+        .max()
+        .unwrap_or(0);
     for algo in Algorithm::ALL {
-        println!("  {:<6} {}", algo.name(), algo.about());
+        println!("  {:<width$} {}", algo.name(), algo.about());
     }
     Ok(())
 }

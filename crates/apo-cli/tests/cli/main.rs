@@ -402,7 +402,8 @@ fn eval_list_and_plot() {
 #[test]
 fn wgpu_backend_trains() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    for algo in ["apo", "papo"] {
+    // V-MPO: its multipliers are learned through wgpu's autodiff graph too
+    for algo in ["apo", "papo", "vmpo"] {
         let run = tmp.path().join(algo);
         let out = apo(&[
             "train",
@@ -432,5 +433,12 @@ fn wgpu_backend_trains() {
                 .all(|r| r.kl.is_finite() && r.loss_v.is_finite() && r.episodes == 2),
             "{rows:?}"
         );
+        if algo == "vmpo" {
+            assert!(
+                rows.iter()
+                    .all(|r| r.eta.is_some_and(|e| e.is_finite() && e != 1.0)),
+                "{rows:?}"
+            );
+        }
     }
 }
