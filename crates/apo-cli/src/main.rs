@@ -571,7 +571,7 @@ fn sweep(args: SweepArgs) -> anyhow::Result<ExitCode> {
         args.last
     );
     let mut previous: Option<(&str, Algorithm)> = None;
-    let width = Algorithm::ALL.iter().map(|a| a.name().len()).max().unwrap_or(0);
+    let width = algorithm_name_width();
     for r in &results {
         let best = previous != Some((r.env.as_str(), r.algo));
         previous = Some((r.env.as_str(), r.algo));
@@ -801,15 +801,16 @@ fn list() -> anyhow::Result<()> {
     }
     println!();
     println!("algorithms:");
-    let width = Algorithm::ALL
-        .iter()
-        .map(|a| a.name().len())
-        .max()
-        .unwrap_or(0);
+    let width = algorithm_name_width();
     for algo in Algorithm::ALL {
         println!("  {:<width$} {}", algo.name(), algo.about());
     }
     Ok(())
+}
+
+/// The width of the longest algorithm name, to align tables.
+fn algorithm_name_width() -> usize {
+    Algorithm::ALL.iter().map(|a| a.name().len()).max().unwrap_or(0)
 }
 
 /// The progress bar: environment steps of the whole run, with the epoch, speed, returns and ETA.
