@@ -13,6 +13,7 @@ pub mod run_dir;
 pub mod summary;
 pub mod sweep;
 pub mod tensorboard;
+pub mod theory;
 pub mod trainer;
 
 pub use config::{BackendKind, RunConfig};

@@ -92,6 +92,10 @@ enum Command {
         #[arg(long)]
         column: Option<String>,
     },
+    /// The APO paper's Theorem 1 checked exactly on random tabular MDPs: (a) the surrogate
+    /// M_k^j(π) ≤ B_k(π) = J − k·V, (b) equality at π_j, (c) B_k along exact APO iterations and
+    /// along the practical trust-region surrogate, (d) Selberg's confidence (docs/theory.md).
+    Theory(apo_cli::theory::TheoryArgs),
     /// The paper's metrics of runs: average mean and worst return over all and the last N epochs.
     Summary {
         /// Run directories.
@@ -390,6 +394,7 @@ fn main() -> ExitCode {
             .map(|()| ExitCode::SUCCESS),
         Command::Bench(command) => bench(command).map(|()| ExitCode::SUCCESS),
         Command::Sweep(args) => sweep(args),
+        Command::Theory(args) => apo_cli::theory::run(&args).map(|()| ExitCode::SUCCESS),
         Command::Report {
             runs,
             last,
@@ -810,7 +815,11 @@ fn list() -> anyhow::Result<()> {
 
 /// The width of the longest algorithm name, to align tables.
 fn algorithm_name_width() -> usize {
-    Algorithm::ALL.iter().map(|a| a.name().len()).max().unwrap_or(0)
+    Algorithm::ALL
+        .iter()
+        .map(|a| a.name().len())
+        .max()
+        .unwrap_or(0)
 }
 
 /// The progress bar: environment steps of the whole run, with the epoch, speed, returns and ETA.
