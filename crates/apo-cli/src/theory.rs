@@ -2,7 +2,7 @@
 //! (`apo_theory::checks`), printed as a report.
 
 use anyhow::{bail, Context};
-use apo_theory::bound::MuNorm;
+use apo_theory::bound::{CrossTerm, MuNorm, OverStates, Reading};
 use apo_theory::checks::{
     check_lower_bound, check_selberg, iterate, Counterexample, Problems, Step,
 };
@@ -34,6 +34,9 @@ pub struct TheoryArgs {
     /// How ‖μᵀ‖∞ is read: the induced norm of the row vector (Σ μ = 1) or the largest entry.
     #[arg(long, value_parser = ["induced", "max-entry"], default_value = "induced")]
     pub mu_norm: String,
+    /// The MeanVariance bound's cross term: the paper's 2·E[A]·|H|max, or 2·E[|A|]·|H|max.
+    #[arg(long, value_parser = ["paper", "absolute"], default_value = "paper")]
+    pub cross_term: String,
     /// MDPs (seeds 0..N) for check (c), the iterations.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(0..=100_000))]
     pub iteration_seeds: u64,
@@ -55,7 +58,7 @@ pub struct TheoryArgs {
 }
 
 impl TheoryArgs {
-    fn validate(&self) -> anyhow::Result<(Problems, MuNorm)> {
+    fn validate(&self) -> anyhow::Result<(Problems, Reading)> {
         if !(0.0..1.0).contains(&self.gamma) {
             bail!("--gamma {} must be in [0, 1)", self.gamma);
         }
@@ -71,9 +74,15 @@ impl TheoryArgs {
         if !(self.max_kl.is_finite() && self.max_kl > 0.0) {
             bail!("--max-kl {} must be > 0", self.max_kl);
         }
-        let norm = match self.mu_norm.as_str() {
-            "max-entry" => MuNorm::MaxEntry,
-            _ => MuNorm::Induced,
+        let norm = Reading {
+            mu_norm: match self.mu_norm.as_str() {
+                "max-entry" => MuNorm::MaxEntry,
+                _ => MuNorm::Induced,
+            },
+            cross_term: match self.cross_term.as_str() {
+                "absolute" => CrossTerm::AbsoluteAdvantage,
+                _ => CrossTerm::Paper,
+            },
         };
         Ok((
             Problems {
@@ -90,8 +99,8 @@ impl TheoryArgs {
 fn describe(c: &Counterexample) -> String {
     let t = &c.terms;
     format!(
-        "seed {}, k {}, logit distance {}, D_KL^max {:.3e}: J {:.6}, V {:.6}, J^l {:.6}, MV {:.6}, VM {:.6}, M {:.6}, B {:.6}",
-        c.seed, c.k, c.distance, c.max_kl, t.j, t.variance, t.j_lower, t.mean_variance, t.variance_mean, t.m, t.b
+        "seed {}, k {}, logit distance {}, D_KL^max {:.3e}: J {:.6} ≥ J^l {:.6}; MV_π {:.6} vs bound MV_{{π,π_j}} {:.6}; VM_π {:.6} vs bound VM_{{π,π_j}} {:.6}; M {:.6}, B {:.6}",
+        c.seed, c.k, c.distance, c.max_kl, t.j, t.j_lower, t.true_mean_variance, t.mean_variance, t.true_variance_mean, t.variance_mean, t.m, t.b
     )
 }
 
@@ -110,8 +119,8 @@ fn drops(values: &[f64], tol: f64) -> (usize, f64) {
 pub fn run(args: &TheoryArgs) -> anyhow::Result<()> {
     let (problems, norm) = args.validate()?;
     println!(
-        "Theorem 1 on random tabular MDPs: {} states, {} actions, γ {}, π_j logits × {}, k ∈ {:?}, ‖μᵀ‖∞ read as {}",
-        args.states, args.actions, args.gamma, args.temperature, args.k, args.mu_norm
+        "Theorem 1 on random tabular MDPs: {} states, {} actions, γ {}, π_j logits × {}, k ∈ {:?}, ‖μᵀ‖∞ read as {}, MV cross term {}",
+        args.states, args.actions, args.gamma, args.temperature, args.k, args.mu_norm, args.cross_term
     );
 
     let lb = check_lower_bound(&problems, 0..args.seeds, &args.k, args.draws as usize, norm)
@@ -131,9 +140,17 @@ pub fn run(args: &TheoryArgs) -> anyhow::Result<()> {
     for (name, step) in [
         ("exact APO (maximize M_k^j)", Step::Exact),
         (
-            "trust-region surrogate",
+            "trust-region surrogate, max over states",
             Step::TrustRegion {
                 max_kl: args.max_kl,
+                over: OverStates::Max,
+            },
+        ),
+        (
+            "trust-region surrogate, average over states (the practical APO)",
+            Step::TrustRegion {
+                max_kl: args.max_kl,
+                over: OverStates::Average,
             },
         ),
     ] {

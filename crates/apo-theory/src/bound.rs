@@ -7,7 +7,8 @@
 //! candidate; `A_{π_j}(s,a)` and `A_{π_j}(s,a,s') = r(s,a,s') + γ V_{π_j}(s') − V_{π_j}(s)`;
 //! `Ā_{π,π_j}(s) = E_{a∼π}[A_{π_j}(s,a)]`.
 //!
-//! `‖μᵀ‖∞` is read as the induced ∞-norm of the row vector `μᵀ`, which is `Σ_s μ(s) = 1`: the
+//! [`Reading`] says how the statement is read where it leaves a choice. `‖μᵀ‖∞` is by default
+//! the induced ∞-norm of the row vector `μᵀ`, which is `Σ_s μ(s) = 1`: the
 //! norm under which the appendix's step `|μᵀ x| ≤ ‖μᵀ‖∞ ‖x‖∞` holds. [`MuNorm::MaxEntry`] reads
 //! it as `max_s μ(s)` instead (what "‖μ‖∞" would mean for a vector), to see what that changes.
 
@@ -35,6 +36,54 @@ impl MuNorm {
 /// `max_i |x_i|` (0 for an empty slice): the ∞-norm.
 pub(crate) fn max_abs(x: &[f64]) -> f64 {
     x.iter().fold(0.0, |m: f64, v| m.max(v.abs()))
+}
+
+/// How the MeanVariance bound's cross term `2 E_{a∼π,s'}[A_{π_j}(s,a,s')] |H|_max` is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CrossTerm {
+    /// As the paper writes it, `2 E[A] |H|_max`: the appendix bounds `2 E[A H]` by it, which
+    /// fails where `A` and `H` are both negative (docs/theory.md has a counterexample).
+    Paper,
+    /// `2 E[|A|] |H|_max`, a valid bound of `2 E[A H]` since `|H| ≤ |H|_max`.
+    AbsoluteAdvantage,
+}
+
+/// How the paper's statement is read where it leaves a choice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reading {
+    /// `‖μᵀ‖∞`.
+    pub mu_norm: MuNorm,
+    /// The MeanVariance bound's cross term.
+    pub cross_term: CrossTerm,
+}
+
+impl Reading {
+    /// The paper as written: `‖μᵀ‖∞ = 1` (the induced norm, as its Section 4 says) and its cross
+    /// term.
+    pub const PAPER: Reading = Reading {
+        mu_norm: MuNorm::Induced,
+        cross_term: CrossTerm::Paper,
+    };
+}
+
+/// How the terms `max_s |…|` of `MV_{π,π_j}` and `VM_{π,π_j}` are taken over the states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OverStates {
+    /// The maximum, as the theorem states them.
+    Max,
+    /// The average under `d^{π_j}`, as the paper's practical implementation does ("taking the
+    /// average of the state s instead of the maximum", Section 4).
+    Average,
+}
+
+impl OverStates {
+    /// `max_s x(s)` or `Σ_s d^{π_j}(s) x(s)`.
+    fn aggregate(self, x: &[f64], ev_j: &Evaluation) -> f64 {
+        match self {
+            OverStates::Max => x.iter().copied().fold(0.0, f64::max),
+            OverStates::Average => x.iter().zip(&ev_j.d).map(|(a, d)| a * d).sum(),
+        }
+    }
 }
 
 /// `B_k(π) = J(π) − k V(π)`, the lower probability bound of the return (Definition 1).
@@ -68,18 +117,25 @@ pub fn epsilon_pi(pi: &TabularPolicy, ev_j: &Evaluation) -> f64 {
     max_abs(&expected_advantage(pi, ev_j))
 }
 
-/// The candidate-independent part of `J^l` and `J^u`: `(1/(1−γ)) E_{s∼d^{π_j}, a∼π}[A_{π_j}]`
-/// and the KL penalty `(1/(1−γ)) E_{s∼d^{π_j}}[(2γ ε^π/(1−γ)) √(½ D_KL(π ‖ π_j)[s])]`.
+/// `(1/(1−γ)) E_{s∼d^{π_j}, a∼π}[A_{π_j}(s,a)]`: the first-order change of `J` (the
+/// surrogate that TRPO maximizes).
+pub fn expected_gain(pi: &TabularPolicy, ev_j: &Evaluation) -> f64 {
+    let abar = expected_advantage(pi, ev_j);
+    ev_j.d.iter().zip(&abar).map(|(d, a)| d * a).sum::<f64>() / (1.0 - ev_j.gamma)
+}
+
+/// The two parts of `J^l` and `J^u` besides `J(π_j)`: [`expected_gain`], and the KL term
+/// `(1/(1−γ)) E_{s∼d^{π_j}}[(2γ ε^π/(1−γ)) √(½ D_KL(π ‖ π_j)[s])]`.
 fn surrogate_parts(pi: &TabularPolicy, pi_j: &TabularPolicy, ev_j: &Evaluation) -> (f64, f64) {
     let g = ev_j.gamma;
-    let abar = expected_advantage(pi, ev_j);
     let eps_pi = epsilon_pi(pi, ev_j);
-    let (mut gain, mut penalty) = (0.0, 0.0);
-    for s in 0..ev_j.states {
-        gain += ev_j.d[s] * abar[s];
-        penalty += ev_j.d[s] * 2.0 * g * eps_pi / (1.0 - g) * (0.5 * pi.kl(pi_j, s)).sqrt();
-    }
-    (gain / (1.0 - g), penalty / (1.0 - g))
+    let penalty: f64 = ev_j
+        .d
+        .iter()
+        .enumerate()
+        .map(|(s, d)| d * 2.0 * g * eps_pi / (1.0 - g) * (0.5 * pi.kl(pi_j, s)).sqrt())
+        .sum();
+    (expected_gain(pi, ev_j), penalty / (1.0 - g))
 }
 
 /// `J^l_{π,π_j} = J(π_j) + (1/(1−γ)) E_{s∼d^{π_j}, a∼π}[A_{π_j}(s,a) − (2γ ε^π/(1−γ))
@@ -144,17 +200,19 @@ pub fn h_max(
 /// + E_{a∼π,s'}[|H(s,a,s')|²_max + 2 A_{π_j}(s,a,s') |H(s,a,s')|_max]| + MV_{π_j}
 /// + (2γ²‖μᵀ‖∞/(1−γ²)²) √(½ D_KL^max(π ‖ π_j)) ‖Ω_{π_j}‖∞`.
 ///
-/// `|H|_max` depends on `s'`, so its terms are taken inside the expectation over `s'`.
+/// `|H|_max` depends on `s'`, so its terms are taken inside the expectation over `s'`. `over`
+/// says how `max_s |…|` is taken.
 pub fn mean_variance_bound(
     mdp: &Mdp,
     pi: &TabularPolicy,
     pi_j: &TabularPolicy,
     ev_j: &Evaluation,
-    norm: MuNorm,
+    reading: Reading,
+    over: OverStates,
 ) -> Result<f64, TheoryError> {
     let (g, n, na) = (ev_j.gamma, ev_j.states, ev_j.actions);
     let h = h_max(pi, pi_j, ev_j)?;
-    let mut worst: f64 = 0.0;
+    let mut per_state = Vec::with_capacity(n);
     for s in 0..n {
         let mut inner = 0.0;
         for a in 0..na {
@@ -163,12 +221,17 @@ pub fn mean_variance_bound(
                 let pt = mdp.p(s, a, s2);
                 let adv = ev_j.a3(s, a, s2);
                 let hm = h[s * n + s2];
-                inner += p * pt * (adv * adv + hm * hm + 2.0 * adv * hm) - p_j * pt * adv * adv;
+                let cross = match reading.cross_term {
+                    CrossTerm::Paper => adv,
+                    CrossTerm::AbsoluteAdvantage => adv.abs(),
+                };
+                inner += p * pt * (adv * adv + hm * hm + 2.0 * cross * hm) - p_j * pt * adv * adv;
             }
         }
-        worst = worst.max(inner.abs());
+        per_state.push(inner.abs());
     }
-    let mu = norm.of(mdp);
+    let worst = over.aggregate(&per_state, ev_j);
+    let mu = reading.mu_norm.of(mdp);
     let omega_norm = max_abs(&ev_j.omega);
     Ok(mu / (1.0 - g * g) * worst
         + ev_j.mean_variance
@@ -176,23 +239,25 @@ pub fn mean_variance_bound(
 }
 
 /// `VM_{π,π_j} = ‖μᵀ‖∞ max_s ||η(s)|²_max + 2|V_{π_j}(s)| |η(s)|_max| − min(J(π))²
-/// + E_{s_0∼μ}[V_{π_j}(s_0)²]` (equation "vm def").
+/// + E_{s_0∼μ}[V_{π_j}(s_0)²]` (equation "vm def"); `over` says how `max_s |…|` is taken.
 pub fn variance_mean_bound(
     mdp: &Mdp,
     pi: &TabularPolicy,
     pi_j: &TabularPolicy,
     ev_j: &Evaluation,
-    norm: MuNorm,
+    reading: Reading,
+    over: OverStates,
 ) -> Result<f64, TheoryError> {
     let eta = eta_max(pi, pi_j, ev_j)?;
-    let spread = (0..ev_j.states)
+    let per_state: Vec<f64> = (0..ev_j.states)
         .map(|s| (eta[s] * eta[s] + 2.0 * ev_j.v[s].abs() * eta[s]).abs())
-        .fold(0.0, f64::max);
+        .collect();
+    let spread = over.aggregate(&per_state, ev_j);
     let mean_v_sq: f64 = (0..ev_j.states)
         .map(|s| mdp.start[s] * ev_j.v[s] * ev_j.v[s])
         .sum();
     let min_sq = min_j_sq(j_lower(pi, pi_j, ev_j), j_upper(pi, pi_j, ev_j));
-    Ok(norm.of(mdp) * spread - min_sq + mean_v_sq)
+    Ok(reading.mu_norm.of(mdp) * spread - min_sq + mean_v_sq)
 }
 
 /// Every term of `M_k^j(π)` for one candidate `π`, and the true `B_k(π)`.
@@ -202,6 +267,10 @@ pub struct Surrogate {
     pub j: f64,
     /// `V(π)`, exact.
     pub variance: f64,
+    /// `MV_π = E_{s_0∼μ}[Var[R(s_0)]]`, exact: what `MV_{π,π_j}` bounds (Lemma "bound of MV").
+    pub true_mean_variance: f64,
+    /// `VM_π = Var_{s_0∼μ}[V_π(s_0)]`, exact: what `VM_{π,π_j}` bounds (Lemma "bound of VM").
+    pub true_variance_mean: f64,
     /// `J^l_{π,π_j}`.
     pub j_lower: f64,
     /// `MV_{π,π_j}`.
@@ -222,15 +291,17 @@ impl Surrogate {
         pi_j: &TabularPolicy,
         ev_j: &Evaluation,
         k: f64,
-        norm: MuNorm,
+        reading: Reading,
     ) -> Result<Self, TheoryError> {
         let ev = Evaluation::new(mdp, pi)?;
         let j_lower = j_lower(pi, pi_j, ev_j);
-        let mean_variance = mean_variance_bound(mdp, pi, pi_j, ev_j, norm)?;
-        let variance_mean = variance_mean_bound(mdp, pi, pi_j, ev_j, norm)?;
+        let mean_variance = mean_variance_bound(mdp, pi, pi_j, ev_j, reading, OverStates::Max)?;
+        let variance_mean = variance_mean_bound(mdp, pi, pi_j, ev_j, reading, OverStates::Max)?;
         Ok(Self {
             j: ev.j,
             variance: ev.return_variance,
+            true_mean_variance: ev.mean_variance,
+            true_variance_mean: ev.variance_mean,
             j_lower,
             mean_variance,
             variance_mean,

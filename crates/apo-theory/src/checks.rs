@@ -14,8 +14,8 @@ use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 
 use crate::bound::{
-    bound_k, confidence, expected_advantage, j_lower, j_upper, max_abs, mean_variance_bound,
-    variance_mean_bound, MuNorm, Surrogate,
+    bound_k, confidence, expected_gain, j_lower, max_abs, mean_variance_bound, variance_mean_bound,
+    OverStates, Reading, Surrogate,
 };
 use crate::montecarlo::sample_returns;
 use crate::{Evaluation, Mdp, TabularPolicy, TheoryError};
@@ -100,7 +100,7 @@ pub fn check_lower_bound(
     seeds: std::ops::Range<u64>,
     ks: &[f64],
     draws: usize,
-    norm: MuNorm,
+    reading: Reading,
 ) -> Result<LowerBoundReport, TheoryError> {
     let mut report = LowerBoundReport {
         cases: 0,
@@ -114,7 +114,7 @@ pub fn check_lower_bound(
         let ev_j = Evaluation::new(&mdp, &pi_j)?;
         let mut rng = StdRng::seed_from_u64(seed.wrapping_mul(31).wrapping_add(7));
         for &k in ks {
-            let at_j = Surrogate::new(&mdp, &pi_j, &pi_j, &ev_j, k, norm)?;
+            let at_j = Surrogate::new(&mdp, &pi_j, &pi_j, &ev_j, k, reading)?;
             report.max_gap_at_pi_j = report.max_gap_at_pi_j.max((at_j.m - at_j.b).abs());
             for &distance in &DISTANCES {
                 for _ in 0..draws {
@@ -122,7 +122,7 @@ pub fn check_lower_bound(
                     let logits: Vec<f64> =
                         logits_j.iter().zip(&noise).map(|(a, b)| a + b).collect();
                     let pi = policy(&mdp, &logits);
-                    let terms = Surrogate::new(&mdp, &pi, &pi_j, &ev_j, k, norm)?;
+                    let terms = Surrogate::new(&mdp, &pi, &pi_j, &ev_j, k, reading)?;
                     report.cases += 1;
                     let tolerance = 1e-9 * (1.0 + terms.b.abs());
                     if terms.m - terms.b > tolerance {
@@ -156,6 +156,9 @@ pub enum Step {
     TrustRegion {
         /// δ.
         max_kl: f64,
+        /// How `max_s |…|` in MV̄ and VM̄ is taken: [`OverStates::Average`] is the paper's
+        /// practical implementation.
+        over: OverStates,
     },
 }
 
@@ -168,23 +171,26 @@ fn objective(
     ev_j: &Evaluation,
     k: f64,
     step: Step,
-    norm: MuNorm,
+    reading: Reading,
 ) -> Result<Option<f64>, TheoryError> {
     let pi = policy(mdp, logits);
-    let mv = mean_variance_bound(mdp, &pi, pi_j, ev_j, norm)?;
-    let vm = variance_mean_bound(mdp, &pi, pi_j, ev_j, norm)?;
+    let over = match step {
+        Step::Exact => OverStates::Max,
+        Step::TrustRegion { over, .. } => over,
+    };
+    let mv = mean_variance_bound(mdp, &pi, pi_j, ev_j, reading, over)?;
+    let vm = variance_mean_bound(mdp, &pi, pi_j, ev_j, reading, over)?;
     Ok(match step {
         Step::Exact => Some(j_lower(&pi, pi_j, ev_j) - k * (mv + vm)),
-        Step::TrustRegion { max_kl } => {
+        Step::TrustRegion { max_kl, .. } => {
             let mean_kl: f64 = (0..mdp.states).map(|s| ev_j.d[s] * pi.kl(pi_j, s)).sum();
             if mean_kl > max_kl {
                 return Ok(None);
             }
             let g = mdp.gamma;
-            let abar = expected_advantage(&pi, ev_j);
-            let gain: f64 = (0..mdp.states).map(|s| ev_j.d[s] * abar[s]).sum::<f64>() / (1.0 - g);
+            let gain = expected_gain(&pi, ev_j);
             let omega_norm = max_abs(&ev_j.omega);
-            let kl_term = 2.0 * g * g * norm.of(mdp) / (1.0 - g * g).powi(2)
+            let kl_term = 2.0 * g * g * reading.mu_norm.of(mdp) / (1.0 - g * g).powi(2)
                 * (0.5 * pi.max_kl(pi_j)).sqrt()
                 * omega_norm;
             let mean_v_sq: f64 = (0..mdp.states)
@@ -192,8 +198,6 @@ fn objective(
                 .sum();
             let mv_bar = mv - ev_j.mean_variance - kl_term;
             let vm_bar = vm - mean_v_sq;
-            // J^u enters VM through min(J)²; keep it (it is part of VM_{π,π_j})
-            let _ = j_upper(&pi, pi_j, ev_j);
             Some(gain - k * (mv_bar + vm_bar))
         }
     })
@@ -207,12 +211,19 @@ fn maximize(
     logits_j: &[f64],
     k: f64,
     step: Step,
-    norm: MuNorm,
+    reading: Reading,
     ascent_steps: usize,
 ) -> Result<Vec<f64>, TheoryError> {
     let pi_j = policy(mdp, logits_j);
     let ev_j = Evaluation::new(mdp, &pi_j)?;
-    let f = |x: &[f64]| objective(mdp, x, &pi_j, &ev_j, k, step, norm);
+    // a non-finite value (a policy so peaked that a probability underflows to 0 and a KL is
+    // infinite) counts as outside the feasible set
+    let f = |x: &[f64]| -> Result<Option<f64>, TheoryError> {
+        if !x.iter().all(|v| v.is_finite()) {
+            return Ok(None);
+        }
+        Ok(objective(mdp, x, &pi_j, &ev_j, k, step, reading)?.filter(|v| v.is_finite()))
+    };
     let mut x = logits_j.to_vec();
     let mut fx = f(&x)?.unwrap_or(f64::NEG_INFINITY);
     let h = 1e-6;
@@ -227,7 +238,7 @@ fn maximize(
             }
         }
         let norm_g = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
-        if norm_g < 1e-12 {
+        if !norm_g.is_finite() || norm_g < 1e-12 {
             break;
         }
         let mut t = 1.0 / norm_g;
@@ -258,14 +269,14 @@ pub fn iterate(
     seed: u64,
     k: f64,
     step: Step,
-    norm: MuNorm,
+    reading: Reading,
     iterations: usize,
     ascent_steps: usize,
 ) -> Result<Vec<f64>, TheoryError> {
     let (mdp, mut logits) = problems.draw(seed);
     let mut bounds = vec![bound_k(&Evaluation::new(&mdp, &policy(&mdp, &logits))?, k)];
     for _ in 0..iterations {
-        logits = maximize(&mdp, &logits, k, step, norm, ascent_steps)?;
+        logits = maximize(&mdp, &logits, k, step, reading, ascent_steps)?;
         bounds.push(bound_k(&Evaluation::new(&mdp, &policy(&mdp, &logits))?, k));
     }
     Ok(bounds)

@@ -10,6 +10,7 @@ mod hardening;
 mod plot;
 mod reporting;
 mod sweep_report;
+mod theory;
 
 pub fn apo(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_apo"))
