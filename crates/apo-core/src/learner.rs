@@ -13,6 +13,7 @@ use burn::optim::{Adam, AdamConfig};
 use burn::tensor::backend::Backend;
 use rand::Rng;
 
+use crate::adam::{ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 use crate::algorithm::{AlgoConfig, ConfigError, PolicyStep};
 use crate::buffer::Batch;
 use crate::flat::{flatten, from_host, to_host, unflatten};
@@ -23,7 +24,7 @@ use crate::proximal::{proximal_update, value_update, ProximalReport};
 use crate::tensor_batch::TensorBatch;
 use crate::trust_region::{trust_region_step, LineSearchOutcome, Rejections};
 use crate::value::{ValueConfig, ValueNet};
-use crate::value_fit::{host_value_update, ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
+use crate::value_fit::host_value_update;
 
 type Ad<B> = Autodiff<B>;
 

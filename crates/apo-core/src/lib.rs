@@ -18,6 +18,7 @@
 //! * [`learner`] — one object that updates a policy and a critic with any algorithm.
 
 mod activation;
+mod adam;
 pub mod algorithm;
 pub mod buffer;
 pub mod distribution;

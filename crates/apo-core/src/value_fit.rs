@@ -16,6 +16,7 @@ use burn::tensor::backend::Backend;
 use burn::tensor::{Tensor, TensorData};
 use rand::Rng;
 
+use crate::adam::{ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 use crate::buffer::Batch;
 use crate::host_net::HostNet;
 use crate::proximal::{minibatches, ProximalConfig, ValueReport};
@@ -24,14 +25,6 @@ use crate::value::ValueNet;
 type Ad<B> = Autodiff<B>;
 type ValueAdam<B> = OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>;
 type Record<B> = <ValueAdam<B> as Optimizer<ValueNet<Ad<B>>, Ad<B>>>::Record;
-
-/// Adam's β₁, β₂ and ε of every optimizer in apo (PyTorch's defaults, as in the paper's
-/// implementation).
-pub(crate) const ADAM_BETA_1: f32 = 0.9;
-/// See [`ADAM_BETA_1`].
-pub(crate) const ADAM_BETA_2: f32 = 0.999;
-/// See [`ADAM_BETA_1`].
-pub(crate) const ADAM_EPSILON: f32 = 1e-8;
 
 /// A [`HostNet`] with one output trained by Adam on the mean squared error.
 #[derive(Debug, Clone)]

@@ -19,10 +19,10 @@ use burn::tensor::backend::Backend;
 use burn::tensor::{Int, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
 
+use crate::adam::{ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 use crate::distribution::DistParams;
 use crate::flat::to_host;
 use crate::tensor_batch::TensorBatch;
-use crate::value_fit::{ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 
 /// The smallest value of η and α (they are clamped to it after each step).
 pub const MIN_MULTIPLIER: f64 = 1e-8;
