@@ -385,9 +385,7 @@ pub fn load<B: Backend>(
         );
     }
     match (state.vmpo, learner.multipliers().is_some()) {
-        (Some(m), true) => {
-            learner.restore_multipliers(m);
-        }
+        (Some(m), true) => learner.restore_multipliers(m),
         (None, false) => {}
         (Some(_), false) => bail!(
             "{} holds V-MPO's multipliers, but the run's algorithm is not V-MPO",

@@ -212,15 +212,11 @@ where
         self.multipliers.as_ref()
     }
 
-    /// Replaces V-MPO's multipliers (when resuming from a checkpoint). Returns `false`, and
-    /// changes nothing, when the algorithm is not V-MPO.
-    pub fn restore_multipliers(&mut self, multipliers: Multipliers) -> bool {
-        match &mut self.multipliers {
-            Some(m) => {
-                *m = multipliers;
-                true
-            }
-            None => false,
+    /// Replaces V-MPO's multipliers (when resuming from a checkpoint); no effect for the other
+    /// algorithms, which have none.
+    pub fn restore_multipliers(&mut self, multipliers: Multipliers) {
+        if let Some(m) = &mut self.multipliers {
+            *m = multipliers;
         }
     }
 
