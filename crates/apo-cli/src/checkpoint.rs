@@ -52,16 +52,35 @@ pub struct TrainState {
     /// learner by [`save`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vmpo: Option<Multipliers>,
+    /// The number of MPI ranks that trained the run (absent: 1). A run resumes only with the
+    /// same number: each rank's rollout seeds and share of the batch depend on it.
+    #[serde(default = "one_rank", skip_serializing_if = "is_one_rank")]
+    pub ranks: usize,
+}
+
+fn one_rank() -> usize {
+    1
+}
+
+fn is_one_rank(ranks: &usize) -> bool {
+    *ranks == 1
 }
 
 impl TrainState {
-    /// The state of `run` in this version's format.
+    /// The state of `run` in this version's format, trained by one process.
     pub fn new(run: RunState) -> Self {
         Self {
             format: FORMAT,
             run,
             vmpo: None,
+            ranks: 1,
         }
+    }
+
+    /// The same state, of a run trained by `ranks` MPI ranks.
+    pub fn with_ranks(mut self, ranks: usize) -> Self {
+        self.ranks = ranks;
+        self
     }
 }
 

@@ -6,6 +6,8 @@ pub mod bench;
 pub mod checkpoint;
 pub mod config;
 pub mod eval;
+#[cfg(feature = "mpi")]
+pub mod mpi;
 pub mod plot;
 pub mod progress;
 pub mod report;

@@ -366,7 +366,7 @@ fn interrupted_status(signal: usize) -> u8 {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Train(args) => train(args),
+        Command::Train(args) => train_on_ranks(args),
         Command::List => list().map(|()| ExitCode::SUCCESS),
         Command::Eval {
             run,
@@ -889,26 +889,33 @@ impl Observer for Bar {
     }
 }
 
-fn init_logging(run_dir: &Path) -> anyhow::Result<()> {
+fn init_logging(run_dir: Option<&Path>) -> anyhow::Result<()> {
     use tracing_subscriber::layer::SubscriberExt;
     use tracing_subscriber::util::SubscriberInitExt;
     use tracing_subscriber::{fmt, EnvFilter, Layer};
-    let path = run_dir.join(run_dir::LOG);
-    let file = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(&path)
-        .with_context(|| format!("cannot open {}", path.display()))?;
+    let file = match run_dir {
+        Some(run_dir) => {
+            let path = run_dir.join(run_dir::LOG);
+            Some(
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(&path)
+                    .with_context(|| format!("cannot open {}", path.display()))?,
+            )
+        }
+        None => None,
+    };
     let stderr_filter =
         EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("warn"));
     let ansi = std::io::stderr().is_terminal();
     tracing_subscriber::registry()
-        .with(
+        .with(file.map(|file| {
             fmt::layer()
                 .with_writer(std::sync::Mutex::new(file))
                 .with_ansi(false)
-                .with_filter(EnvFilter::new("info")),
-        )
+                .with_filter(EnvFilter::new("info"))
+        }))
         .with(
             fmt::layer()
                 .with_writer(std::io::stderr)
@@ -968,7 +975,50 @@ impl Signals {
     }
 }
 
-fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
+/// `apo train`, as one rank of an MPI job when started by `mpirun` (feature `mpi`). An error
+/// on any rank ends the whole job.
+#[cfg(feature = "mpi")]
+fn train_on_ranks(args: TrainArgs) -> anyhow::Result<ExitCode> {
+    let mpi = apo_cli::mpi::Mpi::init()?;
+    let comm = mpi.comm();
+    let result = train(args, &comm);
+    if comm.is_distributed() {
+        let traffic = mpi.traffic();
+        tracing::info!(
+            rank = comm.rank(),
+            calls = traffic.calls,
+            bytes = traffic.bytes,
+            seconds = traffic.seconds,
+            "MPI collectives of this rank"
+        );
+        if comm.rank() == 0 && result.is_ok() {
+            println!(
+                "MPI: {} ranks; rank 0 made {} collective calls, sent {:.1} MB, spent {:.2} s in them",
+                comm.size(),
+                traffic.calls,
+                traffic.bytes as f64 / 1e6,
+                traffic.seconds
+            );
+        }
+        if let Err(e) = &result {
+            eprintln!("error (MPI rank {} of {}): {e:#}", comm.rank(), comm.size());
+            eprintln!("ending every rank of the job");
+            mpi.abort(1);
+        }
+    }
+    result
+}
+
+/// `apo train` in one process (built without the `mpi` feature).
+#[cfg(not(feature = "mpi"))]
+fn train_on_ranks(args: TrainArgs) -> anyhow::Result<ExitCode> {
+    train(args, &apo_core::Comm::default())
+}
+
+/// `apo train` on rank `comm.rank()`: rank 0 creates (or locks) the run directory and writes
+/// in it; the other ranks build the same configuration and only read.
+fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
+    let writer = comm.rank() == 0;
     let mut fresh = None;
     let (config, run_dir, resume, _lock) = match &args.resume {
         Some(dir) => {
@@ -986,7 +1036,7 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
             let config_path = dir.join(run_dir::CONFIG);
             let mut config = RunConfig::load(&config_path)
                 .with_context(|| format!("{} is not a run directory", dir.display()))?;
-            let lock = RunLock::acquire(dir)?;
+            let lock = writer.then(|| RunLock::acquire(dir)).transpose()?;
             let spec = apo_envs::registry::spec(&config.train.env)?;
             if let Some(epochs) = args.epochs {
                 config.train.epochs = epochs;
@@ -996,7 +1046,7 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
                 spec.observation_dim,
                 apo_train::action_kind(&spec.action_space),
             )?;
-            if args.epochs.is_some() {
+            if args.epochs.is_some() && writer {
                 // the new target is part of the run: a later plain --resume continues to it
                 apo_cli::atomic::write(&config_path, config.to_toml().as_bytes())
                     .with_context(|| format!("cannot write {}", config_path.display()))?;
@@ -1057,8 +1107,12 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
                     config.train.env, algo, config.train.seed
                 ))
             });
+            if !writer {
+                // rank 0 prepares the directory and writes its files
+                return run_training(&config, &dir, false, args.threads, true, comm);
+            }
             let mut prepared = NewRunDir::prepare(&dir, args.force)?;
-            let lock = prepared.take_lock().context("the run directory's lock")?;
+            let lock = Some(prepared.take_lock().context("the run directory's lock")?);
             let config_path = dir.join(run_dir::CONFIG);
             if let Err(e) = apo_cli::atomic::write(&config_path, config.to_toml().as_bytes()) {
                 prepared.discard();
@@ -1068,7 +1122,8 @@ fn train(args: TrainArgs) -> anyhow::Result<ExitCode> {
             (config, dir, false, lock)
         }
     };
-    let result = run_training(&config, &run_dir, resume, args.threads, args.quiet);
+    let quiet = args.quiet || !writer;
+    let result = run_training(&config, &run_dir, resume, args.threads, quiet, comm);
     if result.is_err() && !run_dir.join(run_dir::PROGRESS).exists() {
         // a new run that failed before its first epoch leaves nothing behind
         if let Some(prepared) = fresh {
@@ -1084,8 +1139,10 @@ fn run_training(
     resume: bool,
     threads: usize,
     quiet: bool,
+    comm: &apo_core::Comm,
 ) -> anyhow::Result<ExitCode> {
-    init_logging(run_dir)?;
+    // the run's log is rank 0's; the other ranks log to stderr only
+    init_logging((comm.rank() == 0).then_some(run_dir))?;
     let signals = Signals::install()?;
     let mut bar = Bar::new(quiet, config);
     let end = match config.backend {
@@ -1095,6 +1152,7 @@ fn run_training(
             &Default::default(),
             resume,
             threads,
+            comm,
             &signals.stop,
             &mut bar,
         ),
@@ -1106,6 +1164,7 @@ fn run_training(
                 &Default::default(),
                 resume,
                 threads,
+                comm,
                 &signals.stop,
                 &mut bar,
             )
@@ -1116,7 +1175,9 @@ fn run_training(
     }
     match end? {
         TrainEnd::Finished => {
-            println!("run finished: {}", run_dir.display());
+            if comm.rank() == 0 {
+                println!("run finished: {}", run_dir.display());
+            }
             Ok(ExitCode::SUCCESS)
         }
         TrainEnd::Interrupted { epoch } => {

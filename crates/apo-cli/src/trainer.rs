@@ -6,7 +6,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::bail;
-use apo_core::ActionKind;
+use apo_core::{ActionKind, Comm};
 use apo_train::{TrainError, Trainer};
 use burn::tensor::backend::Backend;
 
@@ -47,7 +47,9 @@ pub fn shapes(config: &RunConfig, observation_dim: usize, action: ActionKind) ->
 
 /// Trains (or, with `resume`, continues) the run in `run_dir` on backend `B`, the
 /// environments stepped on `threads` threads (0: the cores available; results do not depend
-/// on it).
+/// on it), as rank `comm.rank()` of `comm.size()` (every rank calls it with the same
+/// arguments; rank 0 alone writes the run's files, the others only read the checkpoint when
+/// resuming). A checkpoint records the number of ranks and resuming with another is refused.
 ///
 /// Resuming checks that the checkpoint and `progress.csv` agree (rows of every completed epoch,
 /// with matching step counts) and refuses with the reason when they don't. An update that
@@ -59,6 +61,7 @@ pub fn train<B: Backend>(
     device: &B::Device,
     resume: bool,
     threads: usize,
+    comm: &Comm,
     stop: &AtomicBool,
     observer: &mut dyn Observer,
 ) -> anyhow::Result<TrainEnd> {
@@ -66,11 +69,23 @@ pub fn train<B: Backend>(
     trainer
         .learner_mut()
         .set_kernels(config.kernels.resolve(config.backend));
+    let ranks = comm.size();
+    if comm.is_distributed() {
+        trainer.distribute(comm.clone())?;
+    }
+    let writer = comm.rank() == 0;
     let shapes = shapes(config, trainer.observation_dim(), trainer.action());
+    let save = |trainer: &Trainer<B, _, _>, keep: bool| -> anyhow::Result<TrainState> {
+        let state = TrainState::new(trainer.state().clone()).with_ranks(ranks);
+        if writer {
+            checkpoint::save(run_dir, trainer.learner(), &state, &shapes, keep)?;
+        }
+        Ok(state)
+    };
     let progress_path = run_dir.join(crate::run_dir::PROGRESS);
     let mut rows = Vec::new();
     if resume {
-        let on_disk = if progress_path.exists() {
+        let on_disk = if writer && progress_path.exists() {
             progress::read(&progress_path)?
         } else {
             Vec::new()
@@ -78,7 +93,18 @@ pub fn train<B: Backend>(
         match checkpoint::locate(run_dir, &Which::Latest)? {
             Some(from) => {
                 let state = checkpoint::load(&from, trainer.learner_mut(), &shapes, device)?;
-                check_rows(&on_disk, &state, &progress_path, &from)?;
+                if state.ranks != ranks {
+                    bail!(
+                        "{} was written by a run on {} MPI rank(s); it continues only on as many (each rank's seeds and \
+                         share of the batch depend on it): launch it with `mpirun -n {} apo train --resume …`, not {ranks}",
+                        from.display(),
+                        state.ranks,
+                        state.ranks
+                    );
+                }
+                if writer {
+                    check_rows(&on_disk, &state, &progress_path, &from)?;
+                }
                 rows = on_disk;
                 if rows.len() > state.run.epoch {
                     tracing::info!(
@@ -96,7 +122,7 @@ pub fn train<B: Backend>(
                     other => other.into(),
                 })?;
             }
-            None if on_disk.is_empty() => {
+            None if on_disk.is_empty() || !writer => {
                 tracing::info!("no checkpoint and no completed epoch: the run starts from epoch 0");
             }
             None => bail!(
@@ -108,15 +134,14 @@ pub fn train<B: Backend>(
             ),
         }
     }
-    let mut events = EventWriter::create(run_dir)?;
+    let mut events = writer.then(|| EventWriter::create(run_dir)).transpose()?;
     let mut checkpoint_epoch = trainer.state().epoch;
     let epochs = config.train.epochs;
     while !trainer.finished() {
         let report = match trainer.epoch(stop, &mut |steps| observer.steps(steps)) {
             Ok(Some(report)) => report,
             Ok(None) => {
-                let state = TrainState::new(trainer.state().clone());
-                checkpoint::save(run_dir, trainer.learner(), &state, &shapes, false)
+                let state = save(&trainer, false)
                     .map_err(|e| e.context("writing the checkpoint after an interrupt"))?;
                 tracing::warn!(epoch = state.run.epoch, "interrupted; checkpoint written");
                 return Ok(TrainEnd::Interrupted {
@@ -161,13 +186,16 @@ pub fn train<B: Backend>(
         }
         observer.epoch(&row, epochs);
         rows.push(row.clone());
-        progress::write(&progress_path, &rows)?;
-        events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
-        let interrupted = stop.load(Ordering::Relaxed);
+        if let Some(events) = &mut events {
+            progress::write(&progress_path, &rows)?;
+            events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
+        }
+        // a signal seen by any rank interrupts all of them after this epoch
+        let mut interrupted = [f64::from(u8::from(stop.load(Ordering::Relaxed)))];
+        comm.max(&mut interrupted);
+        let interrupted = interrupted[0] > 0.0;
         if let Some(due) = trainer.checkpoint_due(interrupted) {
-            let state = TrainState::new(trainer.state().clone());
-            checkpoint::save(run_dir, trainer.learner(), &state, &shapes, due.keep)?;
-            checkpoint_epoch = state.run.epoch;
+            checkpoint_epoch = save(&trainer, due.keep)?.run.epoch;
         }
         if interrupted {
             return Ok(TrainEnd::Interrupted {

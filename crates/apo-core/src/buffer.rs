@@ -12,6 +12,8 @@
 //! * `adv_t = Σ_l (γλ)^l delta_{t+l}` — GAE(γ, λ), normalized over the whole batch in [`RolloutBuffer::take`];
 //! * `ret_t = Σ_l γ^l r_{t+l} + γ^{T−t} last_value` — discounted rewards-to-go, the value targets.
 
+use crate::collective::Comm;
+
 /// Host arrays of one epoch's transitions, ready to become tensors. Row-major.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Batch {
@@ -33,6 +35,37 @@ pub struct Batch {
     pub adv: Vec<f32>,
     /// Rewards-to-go, `[n]`.
     pub ret: Vec<f32>,
+}
+
+impl Batch {
+    /// The transitions `rows` (a contiguous range of `0..len`), for example one rank's share
+    /// of a batch. The advantages are copied as they are (not normalized again).
+    ///
+    /// # Panics
+    /// If `rows` reaches past `len`.
+    pub fn rows(&self, rows: std::ops::Range<usize>) -> Batch {
+        assert!(
+            rows.start <= rows.end && rows.end <= self.len,
+            "Batch::rows: {rows:?} is outside 0..{}",
+            self.len
+        );
+        let n = self.len.max(1);
+        let part = |v: &[f32]| {
+            let width = v.len() / n;
+            v[rows.start * width..rows.end * width].to_vec()
+        };
+        Batch {
+            len: rows.len(),
+            obs: part(&self.obs),
+            actions: part(&self.actions),
+            logp: part(&self.logp),
+            dist: part(&self.dist),
+            value: part(&self.value),
+            delta: part(&self.delta),
+            adv: part(&self.adv),
+            ret: part(&self.ret),
+        }
+    }
 }
 
 /// Sizes of what is stored per step.
@@ -171,6 +204,15 @@ impl RolloutBuffer {
     /// # Panics
     /// If a path was left unfinished in any buffer.
     pub fn take_all(buffers: &mut [RolloutBuffer]) -> Batch {
+        Self::take_all_over(buffers, &Comm::default())
+    }
+
+    /// [`RolloutBuffer::take_all`] on one rank of `comm`: the advantages are normalized with
+    /// the mean and standard deviation of every rank's batch.
+    ///
+    /// # Panics
+    /// If a path was left unfinished in any buffer.
+    pub fn take_all_over(buffers: &mut [RolloutBuffer], comm: &Comm) -> Batch {
         let mut batch = Batch::default();
         for buffer in buffers.iter_mut() {
             assert_eq!(buffer.path_len(), 0, "take() with an unfinished path");
@@ -191,7 +233,7 @@ impl RolloutBuffer {
             batch.adv.extend(part.adv);
             batch.ret.extend(part.ret);
         }
-        normalize(&mut batch.adv);
+        normalize_over(&mut batch.adv, comm);
         batch
     }
 }
@@ -199,16 +241,24 @@ impl RolloutBuffer {
 /// Normalizes `x` in place to mean 0 and (population) standard deviation 1; a constant
 /// vector becomes all zeros.
 pub fn normalize(x: &mut [f32]) {
-    if x.is_empty() {
+    normalize_over(x, &Comm::default());
+}
+
+/// [`normalize`] with the mean and standard deviation of the union of every rank's `x`.
+pub fn normalize_over(x: &mut [f32], comm: &Comm) {
+    let mut totals = [x.iter().map(|&v| f64::from(v)).sum::<f64>(), x.len() as f64];
+    comm.sum(&mut totals);
+    if totals[1] == 0.0 {
         return;
     }
-    let n = x.len() as f64;
-    let mean = x.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
-    let var = x
+    let n = totals[1];
+    let mean = totals[0] / n;
+    let mut squares = [x
         .iter()
         .map(|&v| (f64::from(v) - mean).powi(2))
-        .sum::<f64>()
-        / n;
+        .sum::<f64>()];
+    comm.sum(&mut squares);
+    let var = squares[0] / n;
     let std = var.sqrt().max(1e-8);
     for v in x {
         *v = ((f64::from(*v) - mean) / std) as f32;

@@ -16,6 +16,7 @@ use rand::Rng;
 use crate::adam::{ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 use crate::algorithm::{AlgoConfig, ConfigError, PolicyStep};
 use crate::buffer::Batch;
+use crate::collective::Comm;
 use crate::flat::{flatten, from_host, to_host, unflatten};
 use crate::kernels::Kernels;
 use crate::objective::{Multipliers, Objective};
@@ -86,6 +87,7 @@ where
     /// V-MPO's learned η and α (`None` for the other algorithms).
     multipliers: Option<Multipliers>,
     kernels: Kernels,
+    comm: Comm,
 }
 
 static INIT_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -141,7 +143,31 @@ where
             policy_optim: adam().init(),
             value_optim: adam().init(),
             kernels: Kernels::default(),
+            comm: Comm::default(),
         })
+    }
+
+    /// Makes every update one update over the union of the batches of `comm`'s ranks
+    /// ([`crate::collective`]): each rank passes its own part to [`Learner::update`] and every
+    /// rank ends with the same networks. The default is one rank.
+    ///
+    /// # Errors
+    /// For V-MPO with more than one rank (its top half and softmax over the union of the
+    /// batches are not implemented).
+    pub fn set_comm(&mut self, comm: Comm) -> Result<(), ConfigError> {
+        crate::validate::check(
+            !(comm.is_distributed() && matches!(self.config.objective(), Objective::Vmpo(_))),
+            "algo",
+            "vmpo",
+            "V-MPO does not run on more than one rank yet",
+        )?;
+        self.comm = comm;
+        Ok(())
+    }
+
+    /// The ranks an update spans.
+    pub fn comm(&self) -> &Comm {
+        &self.comm
     }
 
     /// Where the Fisher-vector products and the value fit run from now on (default
@@ -244,18 +270,20 @@ where
     }
 
     /// One epoch's update of the policy (by the configured algorithm) and of the value
-    /// network, on `batch` collected by the current policy; `rng` shuffles minibatches.
+    /// network, on `batch` collected by the current policy (with several ranks, this rank's
+    /// part of the epoch's batch); `rng` shuffles minibatches.
     pub fn update(&mut self, batch: &Batch, rng: &mut impl Rng) -> UpdateReport {
         let start = std::time::Instant::now();
         let objective = self.objective();
-        let tb = TensorBatch::<B>::new(batch, self.action, &self.device);
+        let tb =
+            TensorBatch::<B>::new(batch, self.action, &self.device).with_comm(self.comm.clone());
         let theta = self.policy_params();
         let before = unflatten(
             self.family.init::<B>(&self.device),
             from_host::<B>(&theta, &self.device),
         );
         let dist = before.distribution(tb.obs.clone());
-        let entropy = to_host(dist.entropy().mean())[0];
+        let entropy = to_host(self.comm.mean(dist.entropy()))[0];
         let terms = objective.evaluate(&dist, &tb);
         let scalar = |t: Option<burn::tensor::Tensor<B, 1>>| t.map(|t| to_host(t)[0]);
 
@@ -293,9 +321,14 @@ where
         let value_start = std::time::Instant::now();
         let value_config = self.config.common().value_update;
         let host = match self.kernels {
-            Kernels::Host => {
-                host_value_update::<B>(&self.value, &self.value_optim, batch, &value_config, rng)
-            }
+            Kernels::Host => host_value_update::<B>(
+                &self.value,
+                &self.value_optim,
+                batch,
+                &value_config,
+                &self.comm,
+                rng,
+            ),
             Kernels::Backend => None,
         };
         let value_report = match host {
@@ -321,7 +354,7 @@ where
         let after = self
             .policy_on::<B>(&self.device)
             .distribution(tb.obs.clone());
-        let kl = to_host(after.kl_from(&tb.dist_old).mean())[0];
+        let kl = to_host(self.comm.mean(after.kl_from(&tb.dist_old)))[0];
         // the switch's diagnostics exist for APO and PAPO only
         let terms_after = matches!(objective, Objective::Apo(_) | Objective::Papo { .. })
             .then(|| objective.evaluate(&after, &tb));

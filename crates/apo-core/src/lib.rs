@@ -15,12 +15,14 @@
 //!   fused host kernels;
 //! * [`metrics`] — per-epoch statistics, the bound `J − k·Var` and its confidence;
 //! * [`algorithm`] — one module per algorithm: its settings, defaults and policy step;
+//! * [`collective`] — data-parallel updates: global means and summed gradients across ranks;
 //! * [`learner`] — one object that updates a policy and a critic with any algorithm.
 
 mod activation;
 mod adam;
 pub mod algorithm;
 pub mod buffer;
+pub mod collective;
 pub mod distribution;
 pub mod fisher;
 pub mod flat;
@@ -44,6 +46,7 @@ pub use algorithm::{
     AlgoConfig, Algorithm, AlgorithmConfig, ConfigError, HMaxMode, PolicyStep, Settings,
 };
 pub use buffer::{Batch, BufferLayout, RolloutBuffer};
+pub use collective::{Collective, Comm, Solo};
 pub use distribution::DistParams;
 pub use fisher::FisherOperator;
 pub use kernels::Kernels;

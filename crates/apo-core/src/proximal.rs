@@ -145,7 +145,8 @@ pub(crate) fn minibatches(n: usize, size: Option<usize>, rng: &mut impl Rng) -> 
     })
 }
 
-/// Up to `step.update.iters` passes of Adam ascending `objective` on `batch`, stopping early
+/// Up to `step.update.iters` passes of Adam ascending `objective` on `batch` (with several
+/// ranks, on the union of their batches: gradients summed, stops on global means), stopping early
 /// before a step when the approximate KL `mean(logp_old − logp)` exceeds `target_kl` or the
 /// ratio deviation `mean(|ratio − 1|)` exceeds `max_ratio_deviation`.
 ///
@@ -180,11 +181,12 @@ where
                 let log_ratio =
                     dist.log_prob(part.actions.clone()).detach() - part.logp_old.clone();
                 if let Some(target) = config.target_kl {
-                    report.approx_kl = to_host(log_ratio.clone().neg().mean())[0];
+                    report.approx_kl = to_host(part.comm.mean(log_ratio.clone().neg()))[0];
                     report.stopped_early |= report.approx_kl > target;
                 }
                 if let Some(max) = step.max_ratio_deviation {
-                    let deviation = to_host(log_ratio.exp().sub_scalar(1.0).abs().mean())[0];
+                    let deviation =
+                        to_host(part.comm.mean(log_ratio.exp().sub_scalar(1.0).abs()))[0];
                     report.ratio_deviation = Some(deviation);
                     report.stopped_early |= deviation > max;
                 }
@@ -205,7 +207,9 @@ where
                 }
                 _ => objective.evaluate(&dist, part).objective.neg().backward(),
             };
-            let grads = GradientsParams::from_grads(grads, &policy);
+            let grads = part
+                .comm
+                .sum_gradients(&policy, GradientsParams::from_grads(grads, &policy));
             policy = optim.step(config.lr, policy, grads);
             report.steps += 1;
         }
@@ -236,9 +240,8 @@ where
     O: Optimizer<ValueNet<AB>, AB>,
 {
     let mse = |v: &ValueNet<AB>, part: &TensorBatch<AB>| {
-        (v.forward(part.obs.clone()) - part.ret.clone())
-            .square()
-            .mean()
+        part.comm
+            .mean((v.forward(part.obs.clone()) - part.ret.clone()).square())
     };
     let loss_before = to_host(mse(&value, batch).detach())[0];
     let mut loss_after = loss_before;
@@ -246,7 +249,9 @@ where
         for part in &split(batch, config.minibatch_size, rng) {
             let loss = mse(&value, part);
             loss_after = to_host(loss.clone().detach())[0];
-            let grads = GradientsParams::from_grads(loss.backward(), &value);
+            let grads = part
+                .comm
+                .sum_gradients(&value, GradientsParams::from_grads(loss.backward(), &value));
             value = optim.step(config.lr, value, grads);
         }
     }

@@ -4,6 +4,7 @@ use burn::tensor::backend::{AutodiffBackend, Backend};
 use burn::tensor::{Tensor, TensorData};
 
 use crate::buffer::Batch;
+use crate::collective::Comm;
 use crate::distribution::DistParams;
 use crate::policy::ActionKind;
 
@@ -26,6 +27,9 @@ pub struct TensorBatch<B: Backend> {
     pub adv: Tensor<B, 1>,
     /// Rewards-to-go, `[n]`.
     pub ret: Tensor<B, 1>,
+    /// The ranks whose batches, together, are the update's batch (this one is rank
+    /// `comm.rank()`'s part); means over the batch are taken with [`Comm::mean`].
+    pub comm: Comm,
 }
 
 fn t1<B: Backend>(v: &[f32], device: &B::Device) -> Tensor<B, 1> {
@@ -58,7 +62,14 @@ impl<B: Backend> TensorBatch<B> {
             delta: t1(&batch.delta, device),
             adv: t1(&batch.adv, device),
             ret: t1(&batch.ret, device),
+            comm: Comm::default(),
         }
+    }
+
+    /// The batch as rank `comm.rank()`'s part of the union of the ranks' batches.
+    pub fn with_comm(mut self, comm: Comm) -> Self {
+        self.comm = comm;
+        self
     }
 
     /// Number of transitions.
@@ -71,7 +82,8 @@ impl<B: Backend> TensorBatch<B> {
         self.len() == 0
     }
 
-    /// The rows `indices` of every field (a minibatch).
+    /// The rows `indices` of every field (a minibatch; with several ranks, this rank's part of
+    /// it).
     pub fn select(&self, indices: &[usize]) -> Self {
         let device = self.adv.device();
         let idx = Tensor::<B, 1, burn::tensor::Int>::from_data(
@@ -109,6 +121,7 @@ impl<B: Backend> TensorBatch<B> {
             delta: f.one(&self.delta),
             adv: f.one(&self.adv),
             ret: f.one(&self.ret),
+            comm: self.comm.clone(),
         }
     }
 }

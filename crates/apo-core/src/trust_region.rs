@@ -10,6 +10,10 @@
 //!    inside the quadratic trust region `½ ΔᵀFΔ ≤ δ`;
 //! 3. backtracking: try `θ_j + ξ^i Δ` for `i = 0, 1, …` (ξ = 0.8, up to 100 tries) and accept
 //!    the first with mean KL ≤ δ and objective ≥ objective(θ_j); if none, keep θ_j.
+//!
+//! With several ranks ([`crate::collective`]) the gradient and every product `F v` are summed
+//! over the ranks' shares, and the line search's KL and objective are means over every rank's
+//! batch: conjugate gradient and the line search run in lockstep, on bitwise equal vectors.
 
 use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
@@ -263,7 +267,7 @@ where
     let device = batch.adv.device();
     let policy = unflatten(family.init::<B>(&device), from_host::<B>(theta, &device));
     let dist = policy.distribution(batch.obs.clone());
-    let kl = dist.kl_from(&batch.dist_old).mean();
+    let kl = batch.comm.mean(dist.kl_from(&batch.dist_old));
     let obj = objective.evaluate(&dist, batch).objective;
     (to_host(kl)[0], to_host(obj)[0])
 }
@@ -284,12 +288,16 @@ where
 {
     let device = batch.adv.device();
     let batch1 = batch.lift::<Autodiff<B>>();
-    let (objective_before, g) =
+    let (objective_before, mut g) =
         gradient(&family.init::<Autodiff<B>>(&device), theta, &device, |p| {
             objective
                 .evaluate(&p.distribution(batch1.obs.clone()), &batch1)
                 .objective
         });
+    let comm = &batch.comm;
+    comm.sum(&mut g);
+    // the Fisher operator averages over this rank's rows: its share of the global mean
+    let share = batch.len() as f64 / comm.total(batch.len()).max(1) as f64;
 
     // θ_j is fixed during the whole solve: both operators are prepared once
     let fisher = FisherOperator::new(family, theta, batch.obs.clone(), &batch.dist_old)
@@ -297,13 +305,14 @@ where
     let batch2 = batch1.lift::<Autodiff2<B>>();
     let template2 = family.init::<Autodiff2<B>>(&device);
     let fvp = |v: &[f64]| -> Vec<f64> {
-        let mut fv = fisher.apply(v).unwrap_or_else(|| {
-            hessian_vector_product::<B, _>(&template2, theta, v, &device, |p| {
-                p.distribution(batch2.obs.clone())
-                    .kl_from(&batch2.dist_old)
-                    .mean()
-            })
-        });
+        let mut fv = match fisher.apply(v) {
+            Some(fv) if comm.is_distributed() => fv.into_iter().map(|x| x * share).collect(),
+            Some(fv) => fv,
+            None => hessian_vector_product::<B, _>(&template2, theta, v, &device, |p| {
+                comm.mean(p.distribution(batch2.obs.clone()).kl_from(&batch2.dist_old))
+            }),
+        };
+        comm.sum(&mut fv);
         axpy(config.cg_damping, v, &mut fv);
         fv
     };

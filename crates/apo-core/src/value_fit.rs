@@ -18,6 +18,7 @@ use rand::Rng;
 
 use crate::adam::{ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
 use crate::buffer::Batch;
+use crate::collective::Comm;
 use crate::host_net::HostNet;
 use crate::proximal::{minibatches, ProximalConfig, ValueReport};
 use crate::value::ValueNet;
@@ -38,6 +39,8 @@ pub(crate) struct HostRegression {
     time: usize,
     /// A minibatch's gathered rows, `[n, input]` and `[n]`.
     gathered: (Vec<f32>, Vec<f32>),
+    /// The ranks whose rows, together, are the regression's data.
+    comm: Comm,
 }
 
 impl HostRegression {
@@ -57,7 +60,23 @@ impl HostRegression {
             moment_2,
             time,
             gathered: (Vec::new(), Vec::new()),
+            comm: Comm::default(),
         })
+    }
+
+    /// The regression over the union of the rows of `comm`'s ranks (each passes its own):
+    /// losses are global means and gradients are summed before each Adam step.
+    pub(crate) fn with_comm(mut self, comm: Comm) -> Self {
+        self.comm = comm;
+        self
+    }
+
+    /// `Σ` over this rank's parts of the squared errors, and the global mean of it over `n`
+    /// rows on this rank → the global mean.
+    fn global_mean(&self, local: f64, rows: usize) -> f64 {
+        let mut totals = [local, rows as f64];
+        self.comm.sum(&mut totals);
+        totals[0] / totals[1].max(1.0)
     }
 
     /// Mean squared error of the predictions on `x: [n, input]` against `y: [n]`.
@@ -66,13 +85,16 @@ impl HostRegression {
             w.forward(part, x_rows);
             part.sum = squared_error(part.output_and_head().0, &y[rows]);
         });
-        self.net.parts().iter().map(|p| p.sum).sum::<f64>() / y.len().max(1) as f64
+        let local = self.net.parts().iter().map(|p| p.sum).sum::<f64>();
+        self.global_mean(local, y.len())
     }
 
     /// One Adam step with learning rate `lr` on the mean squared error of `x: [n, input]`
-    /// against `y: [n]`; returns the loss before the step.
+    /// against `y: [n]`; returns the loss before the step. With several ranks, of the mean
+    /// over every rank's rows.
     pub(crate) fn step(&mut self, x: &[f32], y: &[f32], lr: f32) -> f64 {
-        let scale = 2.0 / y.len().max(1) as f32;
+        let rows = self.comm.total(y.len());
+        let scale = 2.0 / rows.max(1) as f32;
         self.net.run(x, |w, part, rows, x_rows| {
             w.forward(part, x_rows);
             let y = &y[rows];
@@ -84,7 +106,18 @@ impl HostRegression {
             w.backward(part, x_rows);
         });
         self.net.sum_grads();
-        let loss = self.net.parts().iter().map(|p| p.sum).sum::<f64>() / y.len().max(1) as f64;
+        let mut loss = self.net.parts().iter().map(|p| p.sum).sum::<f64>();
+        if self.comm.is_distributed() {
+            // the ranks' gradients and squared errors, summed in one reduction
+            let mut totals: Vec<f64> = self.net.grads.iter().map(|&g| f64::from(g)).collect();
+            totals.push(loss);
+            self.comm.sum(&mut totals);
+            loss = totals.pop().unwrap_or(0.0);
+            for (g, t) in self.net.grads.iter_mut().zip(&totals) {
+                *g = *t as f32;
+            }
+        }
+        let loss = loss / rows.max(1) as f64;
         self.time += 1;
         // Burn's Adam, operation for operation: θ −= lr · m·c / (√v + ε·√(1 − β₂ᵗ)),
         // c = √(1 − β₂ᵗ) / (1 − β₁ᵗ)
@@ -219,6 +252,7 @@ pub(crate) fn host_value_update<B: Backend>(
     optim: &ValueAdam<B>,
     batch: &Batch,
     config: &ProximalConfig,
+    comm: &Comm,
     rng: &mut impl Rng,
 ) -> Option<(ValueNet<Ad<B>>, ValueAdam<B>, ValueReport)> {
     let mut read = ReadMoments::<B> {
@@ -229,7 +263,7 @@ pub(crate) fn host_value_update<B: Backend>(
     };
     value.visit(&mut read);
     let adam = read.time.map(|t| (read.moment_1, read.moment_2, t));
-    let mut fit = HostRegression::new(&value.net.host_layers(), adam)?;
+    let mut fit = HostRegression::new(&value.net.host_layers(), adam)?.with_comm(comm.clone());
     if fit.net.input() * batch.len != batch.obs.len() || batch.ret.len() != batch.len {
         return None;
     }

@@ -233,6 +233,21 @@ impl RunningMeanStd {
         }
     }
 
+    /// Statistics of `count` vectors with per-dimension `mean` and population `var` (for
+    /// example sent by another worker).
+    ///
+    /// # Errors
+    /// [`EnvError::DimensionMismatch`] if `var` is not as long as `mean`.
+    pub fn from_moments(mean: Vec<f64>, var: Vec<f64>, count: f64) -> Result<Self, EnvError> {
+        if var.len() != mean.len() {
+            return Err(EnvError::DimensionMismatch {
+                expected: mean.len(),
+                found: var.len(),
+            });
+        }
+        Ok(Self { mean, var, count })
+    }
+
     /// The dimension of the vectors.
     pub fn dim(&self) -> usize {
         self.mean.len()

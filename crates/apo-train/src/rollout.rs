@@ -18,7 +18,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use apo_core::inference::ActBuffers;
-use apo_core::{ActionKind, BufferLayout, RolloutBuffer};
+use apo_core::{ActionKind, BufferLayout, Comm, RolloutBuffer};
 use apo_envs::{RunningMeanStd, Space, VecEnv, VecStep};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -64,6 +64,9 @@ pub struct Collector {
     normalizer: Option<RunningMeanStd>,
     steps_per_env: usize,
     bootstrap_time_limit: bool,
+    /// The ranks of a data-parallel run (advantages normalized and observation statistics
+    /// merged over all of them).
+    comm: Comm,
 }
 
 impl Collector {
@@ -103,7 +106,17 @@ impl Collector {
             steps_per_env,
             bootstrap_time_limit: true,
             envs,
+            comm: Comm::default(),
         }
+    }
+
+    /// Makes this collector rank `comm.rank()`'s of a data-parallel run collecting
+    /// `steps_per_rank` steps (rounded up to whole vector steps): advantages are normalized
+    /// over every rank's batch and, after each rollout, the observation normalizer holds the
+    /// statistics of every rank's observations (merged in rank order, so equal on every rank).
+    pub fn distribute(&mut self, comm: Comm, steps_per_rank: usize) {
+        self.steps_per_env = steps_per_rank.div_ceil(self.envs.num_envs());
+        self.comm = comm;
     }
 
     /// Whether paths truncated by the time limit bootstrap from `V(final observation)`
@@ -163,6 +176,14 @@ impl Collector {
             steps: 0,
         };
         let mut row = vec![0.0f32; obs_dim];
+        // with several ranks: the statistics at the epoch's start and this rank's additions
+        let mut merge = (self.comm.is_distributed())
+            .then(|| {
+                self.normalizer
+                    .as_ref()
+                    .map(|rms| (rms.clone(), RunningMeanStd::new(rms.dim())))
+            })
+            .flatten();
         for t in 0..self.steps_per_env {
             if stop.load(Ordering::Relaxed) {
                 return None;
@@ -172,6 +193,9 @@ impl Collector {
             }
             if let Some(rms) = &mut self.normalizer {
                 rms.update(&self.obs, n);
+            }
+            if let Some((_, added)) = &mut merge {
+                added.update(&self.obs, n);
             }
             let mut obs_norm = std::mem::take(&mut self.obs_norm);
             self.normalized(&self.obs, &mut obs_norm);
@@ -229,7 +253,29 @@ impl Collector {
                 self.buffers[i].finish_path(last_value);
             }
         }
-        rollout.batch = RolloutBuffer::take_all(&mut self.buffers);
+        rollout.batch = RolloutBuffer::take_all_over(&mut self.buffers, &self.comm);
+        if let Some((base, added)) = merge {
+            self.normalizer = Some(merge_ranks(&self.comm, base, &added));
+        }
         Some(rollout)
     }
+}
+
+/// `base` with every rank's `added` statistics merged into it, in rank order.
+fn merge_ranks(comm: &Comm, mut base: RunningMeanStd, added: &RunningMeanStd) -> RunningMeanStd {
+    let mut mine = vec![added.count()];
+    mine.extend_from_slice(added.mean());
+    mine.extend_from_slice(added.var());
+    let dim = added.dim();
+    for theirs in comm.gather(&mine) {
+        if theirs.len() != 1 + 2 * dim {
+            continue;
+        }
+        let (mean, var) = theirs[1..].split_at(dim);
+        if let Ok(stats) = RunningMeanStd::from_moments(mean.to_vec(), var.to_vec(), theirs[0]) {
+            // same dimension by construction
+            let _ = base.merge(&stats);
+        }
+    }
+    base
 }

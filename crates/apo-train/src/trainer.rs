@@ -9,12 +9,21 @@
 //! [`Trainer::checkpoint_due`] is the checkpoint schedule; writing checkpoints is the caller's
 //! (the `apo` CLI writes them atomically into the run directory, and restores a run with
 //! [`Trainer::learner_mut`] and [`Trainer::restore`]).
+//!
+//! [`Trainer::distribute`] makes the trainer one rank of a data-parallel run (MPI in the
+//! `apo` CLI): each rank collects `steps_per_epoch / N` steps from its own seeds (rank 0's are
+//! a one-process run's), the update is one update over the union of the ranks' batches
+//! ([`apo_core::collective`]), and the epoch's episode statistics are over every rank's
+//! episodes, so every rank returns the same [`ProgressRow`].
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use apo_core::ValueConfig;
-use apo_core::{ActionKind, EpisodeStats, Learner, MlpPolicyConfig, PolicyFamily, UpdateReport};
+use apo_core::{
+    ActionKind, Comm, ConfigError, EpisodeStats, Learner, MlpPolicyConfig, PolicyFamily,
+    UpdateReport,
+};
 use apo_envs::{RunningMeanStd, VecEnv};
 use burn::backend::Autodiff;
 use burn::module::AutodiffModule;
@@ -72,6 +81,8 @@ where
     state: RunState,
     /// When this process started training, and the run's elapsed time before it.
     started: (Instant, f64),
+    /// The ranks of a data-parallel run.
+    comm: Comm,
 }
 
 impl<B: Backend> Trainer<B, MlpPolicyConfig, HostActor> {
@@ -163,12 +174,45 @@ where
                 normalizer,
             },
             started: (Instant::now(), 0.0),
+            comm: Comm::default(),
             config,
             learner,
             value,
             collector,
             actor,
         })
+    }
+
+    /// Makes this trainer rank `comm.rank()` of `comm.size()` of a data-parallel run (call it
+    /// on every rank, before the first epoch): it collects `steps_per_epoch / N` steps per
+    /// epoch, and every update, normalization and statistic spans all ranks.
+    /// `minibatch_size` settings are per rank (the global minibatch is `N` times larger).
+    ///
+    /// # Errors
+    /// [`TrainError::Config`] when `steps_per_epoch` is not a multiple of the number of ranks
+    /// or leaves a rank fewer steps than `num_envs`, or the algorithm cannot run on several
+    /// ranks.
+    pub fn distribute(&mut self, comm: Comm) -> Result<(), TrainError> {
+        let (ranks, steps) = (comm.size(), self.config.steps_per_epoch);
+        if !steps.is_multiple_of(ranks) || steps / ranks < self.config.num_envs {
+            return Err(TrainError::Config(ConfigError {
+                field: "steps_per_epoch".into(),
+                value: steps.to_string(),
+                rule: format!(
+                    "must be a multiple of the {ranks} ranks with at least num_envs = {} steps per rank",
+                    self.config.num_envs
+                ),
+            }));
+        }
+        self.learner.set_comm(comm.clone())?;
+        self.collector.distribute(comm.clone(), steps / ranks);
+        self.comm = comm;
+        Ok(())
+    }
+
+    /// The ranks of the run (one by default).
+    pub fn comm(&self) -> &Comm {
+        &self.comm
     }
 
     /// The run's settings.
@@ -249,16 +293,30 @@ where
         }
         let epoch_start = Instant::now();
         let seed = derive_seed(self.config.seed, self.state.epoch as u64, 0);
+        // rank 0 draws a one-process run's streams; the others their own
+        let rank = self.comm.rank() as u64;
+        let seed = if rank == 0 {
+            seed
+        } else {
+            derive_seed(seed, rank, 3)
+        };
         let steps_before = self.state.env_steps;
-        let Some(rollout) = self
+        let ranks = self.comm.size() as u64;
+        let rollout = self
             .collector
             .collect(&mut self.actor, seed, stop, &mut |steps| {
-                progress(steps_before + steps)
-            })
-        else {
+                progress(steps_before + steps * ranks)
+            });
+        // a stop on any rank drops the epoch on all of them
+        let mut stopped = [f64::from(u8::from(rollout.is_none()))];
+        self.comm.max(&mut stopped);
+        let Some(mut rollout) = rollout.filter(|_| stopped[0] == 0.0) else {
             return Ok(None);
         };
         let rollout_s = epoch_start.elapsed().as_secs_f64();
+        if self.comm.is_distributed() {
+            gather_episodes(&self.comm, &mut rollout);
+        }
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
         let update = self.learner.update(&rollout.batch, &mut rng);
         if let Some(what) = non_finite(&update, &self.learner) {
@@ -308,6 +366,28 @@ where
             || epoch == config.epochs)
             .then_some(Checkpoint { keep })
     }
+}
+
+/// Every rank's episodes (in rank order), instabilities and steps, on every rank.
+fn gather_episodes(comm: &Comm, rollout: &mut crate::rollout::Rollout) {
+    let mine: Vec<f64> = rollout
+        .returns
+        .iter()
+        .copied()
+        .chain(rollout.lengths.iter().map(|&l| l as f64))
+        .collect();
+    let (mut returns, mut lengths) = (Vec::new(), Vec::new());
+    for theirs in comm.gather(&mine) {
+        let (r, l) = theirs.split_at(theirs.len() / 2);
+        returns.extend_from_slice(r);
+        lengths.extend(l.iter().map(|&l| l as usize));
+    }
+    let mut counts = [rollout.unstable as f64, rollout.steps as f64];
+    comm.sum(&mut counts);
+    rollout.returns = returns;
+    rollout.lengths = lengths;
+    rollout.unstable = counts[0] as usize;
+    rollout.steps = counts[1] as u64;
 }
 
 /// What is not finite after an update, if anything: a loss, the KL, the entropy, or a parameter.

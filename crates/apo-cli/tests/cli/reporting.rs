@@ -204,6 +204,7 @@ fn progress_advances_within_the_epoch() {
         &Default::default(),
         false,
         1,
+        &apo_core::Comm::default(),
         &AtomicBool::new(false),
         &mut seen,
     )

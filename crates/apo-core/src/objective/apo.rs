@@ -14,11 +14,14 @@
 //! ```
 //!
 //! Every function here returns a `[1]` tensor unless said otherwise; inputs named
-//! `ratio`, `adv`, `delta`, `value`, `logp`, `logp_old` are `[batch]`.
+//! `ratio`, `adv`, `delta`, `value`, `logp`, `logp_old` are `[batch]`. Means and maxima are over
+//! every rank's batch ([`Comm::mean`], [`Comm::max_const`]; one rank: the plain ones).
 
 use burn::tensor::backend::Backend;
 use burn::tensor::Tensor;
 use serde::{Deserialize, Serialize};
+
+use crate::collective::Comm;
 
 /// Where `|H(s, a, s')|_max` comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -50,8 +53,8 @@ pub fn ratio<B: Backend>(logp: Tensor<B, 1>, logp_old: Tensor<B, 1>) -> Tensor<B
 }
 
 /// The importance-sampled surrogate `mean(ratio · adv)`.
-pub fn mean_surr<B: Backend>(ratio: Tensor<B, 1>, adv: Tensor<B, 1>) -> Tensor<B, 1> {
-    (ratio * adv).mean()
+pub fn mean_surr<B: Backend>(comm: &Comm, ratio: Tensor<B, 1>, adv: Tensor<B, 1>) -> Tensor<B, 1> {
+    comm.mean(ratio * adv)
 }
 
 /// `t(r) = (r − 1) · delta² + 2 · r · delta · h` → `[batch]`: the sample form of
@@ -67,26 +70,26 @@ pub fn variance_increment<B: Backend>(
 
 /// MeanVariance term `mv = ω1 · mean(|t(ratio)|)`, with `h` the per-sample `|H|_max` (`[batch]`).
 pub fn mean_variance<B: Backend>(
+    comm: &Comm,
     ratio: Tensor<B, 1>,
     delta: Tensor<B, 1>,
     h: Tensor<B, 1>,
     omega1: f64,
 ) -> Tensor<B, 1> {
-    variance_increment(ratio, delta, h)
-        .abs()
-        .mean()
+    comm.mean(variance_increment(ratio, delta, h).abs())
         .mul_scalar(omega1)
 }
 
 /// The bias of the lower bound of `J`: `4γ · |mean(logp_old − logp)| · max(adv) / (1 − γ)²`.
 pub fn lower_bound_bias<B: Backend>(
+    comm: &Comm,
     logp: Tensor<B, 1>,
     logp_old: Tensor<B, 1>,
     adv: Tensor<B, 1>,
     gamma: f64,
 ) -> Tensor<B, 1> {
     let scale = 4.0 * gamma / (1.0 - gamma).powi(2);
-    (logp_old - logp).mean().abs() * adv.max().mul_scalar(scale)
+    comm.mean(logp_old - logp).abs() * comm.max_const(adv).mul_scalar(scale)
 }
 
 /// The minimal squared performance `min_J_sq = mean_surr² + 2 · mean(V) · mean_surr`,
@@ -115,6 +118,7 @@ pub fn min_j_sq_off<B: Backend>(
 
 /// VarianceMean term `vm = (ω1 (1 − γ²) / k) · mean(|adv|² + 2 |adv| V) − min_J_sq`, for `k > 0`.
 pub fn variance_mean<B: Backend>(
+    comm: &Comm,
     adv: Tensor<B, 1>,
     value: Tensor<B, 1>,
     min_j_sq: Tensor<B, 1>,
@@ -123,7 +127,7 @@ pub fn variance_mean<B: Backend>(
     k: f64,
 ) -> Tensor<B, 1> {
     let abs_adv = adv.abs();
-    let spread = (abs_adv.clone().square() + (abs_adv * value).mul_scalar(2.0)).mean();
+    let spread = comm.mean(abs_adv.clone().square() + (abs_adv * value).mul_scalar(2.0));
     spread.mul_scalar(omega1 * (1.0 - gamma * gamma) / k) - min_j_sq
 }
 
@@ -137,13 +141,14 @@ pub fn variance_mean<B: Backend>(
 /// along a sampled trajectory `γ η(s') − η(s) = −Ā(s)`, so the second term of the paper's
 /// bound reduces to `|Ā(s)|`.
 pub fn estimated_h_max<B: Backend>(
+    comm: &Comm,
     ratio: Tensor<B, 1>,
     adv: Tensor<B, 1>,
     kl_mean: Tensor<B, 1>,
     gamma: f64,
 ) -> Tensor<B, 1> {
     let scale = 2.0 * gamma * (1.0 + gamma) / (1.0 - gamma).powi(2);
-    let eps = adv.clone().abs().max();
+    let eps = comm.max_const(adv.clone().abs());
     let first = (eps * kl_mean).mul_scalar(scale);
     (ratio * adv).abs() + first
 }
@@ -151,6 +156,7 @@ pub fn estimated_h_max<B: Backend>(
 /// The per-sample `|H|_max` for `params` → `[batch]`; `kl_mean` is only evaluated in the
 /// estimated mode.
 pub fn h_max<B: Backend>(
+    comm: &Comm,
     params: &ApoParams,
     ratio: Tensor<B, 1>,
     adv: Tensor<B, 1>,
@@ -158,6 +164,6 @@ pub fn h_max<B: Backend>(
 ) -> Tensor<B, 1> {
     match params.h_max {
         HMax::Fixed(omega2) => Tensor::full(ratio.dims(), omega2, &ratio.device()),
-        HMax::Estimated => estimated_h_max(ratio, adv, kl_mean(), params.gamma),
+        HMax::Estimated => estimated_h_max(comm, ratio, adv, kl_mean(), params.gamma),
     }
 }

@@ -82,21 +82,28 @@ impl Objective {
         let logp = dist.log_prob(batch.actions.clone());
         match *self {
             Objective::A2c => {
-                let mean_surr = (logp * batch.adv.clone()).mean();
+                let mean_surr = batch.comm.mean(logp * batch.adv.clone());
                 Self::surrogate_only(mean_surr)
             }
             Objective::Trpo => {
                 let ratio = apo::ratio(logp, batch.logp_old.clone());
-                Self::surrogate_only(apo::mean_surr(ratio, batch.adv.clone()))
+                Self::surrogate_only(apo::mean_surr(&batch.comm, ratio, batch.adv.clone()))
             }
             Objective::Ppo { clip } => {
                 let ratio = apo::ratio(logp, batch.logp_old.clone());
-                Self::surrogate_only(papo::clipped_mean_surr(ratio, batch.adv.clone(), clip))
+                Self::surrogate_only(papo::clipped_mean_surr(
+                    &batch.comm,
+                    ratio,
+                    batch.adv.clone(),
+                    clip,
+                ))
             }
             Objective::AlphaPpo { alpha, beta } => {
                 let ratio = apo::ratio(logp, batch.logp_old.clone());
-                let mean_surr = apo::mean_surr(ratio, batch.adv.clone());
-                let divergence = dist.alpha_divergence_from(&batch.dist_old, alpha).mean();
+                let mean_surr = apo::mean_surr(&batch.comm, ratio, batch.adv.clone());
+                let divergence = batch
+                    .comm
+                    .mean(dist.alpha_divergence_from(&batch.dist_old, alpha));
                 ObjectiveTerms {
                     objective: mean_surr.clone().mul_scalar(1.0 - beta)
                         - divergence.mul_scalar(beta),
@@ -144,35 +151,43 @@ impl Objective {
         dist: &DistParams<B>,
         batch: &TensorBatch<B>,
     ) -> ObjectiveTerms<B> {
+        let comm = &batch.comm;
         let ratio = apo::ratio(logp.clone(), batch.logp_old.clone());
         let mean_surr = match clip {
-            None => apo::mean_surr(ratio.clone(), batch.adv.clone()),
-            Some(clip) => papo::clipped_mean_surr(ratio.clone(), batch.adv.clone(), clip),
+            None => apo::mean_surr(comm, ratio.clone(), batch.adv.clone()),
+            Some(clip) => papo::clipped_mean_surr(comm, ratio.clone(), batch.adv.clone(), clip),
         };
         if params.k == 0.0 {
             return Self::surrogate_only(mean_surr);
         }
-        let h = apo::h_max(params, ratio.clone(), batch.adv.clone(), || {
-            dist.kl_from(&batch.dist_old).mean()
+        let h = apo::h_max(comm, params, ratio.clone(), batch.adv.clone(), || {
+            comm.mean(dist.kl_from(&batch.dist_old))
         });
         let mv = match clip {
-            None => apo::mean_variance(ratio, batch.delta.clone(), h, params.omega1),
-            Some(clip) => {
-                papo::clipped_mean_variance(ratio, batch.delta.clone(), h, params.omega1, clip)
-            }
+            None => apo::mean_variance(comm, ratio, batch.delta.clone(), h, params.omega1),
+            Some(clip) => papo::clipped_mean_variance(
+                comm,
+                ratio,
+                batch.delta.clone(),
+                h,
+                params.omega1,
+                clip,
+            ),
         };
         let bias = apo::lower_bound_bias(
+            comm,
             logp,
             batch.logp_old.clone(),
             batch.adv.clone(),
             params.gamma,
         );
-        let mean_value = batch.value.clone().mean();
+        let mean_value = comm.mean(batch.value.clone());
         let on = apo::min_j_sq_off(mean_surr.clone(), mean_value.clone(), bias.clone())
             .bool_not()
             .float();
         let min_j_sq = apo::min_j_sq(mean_surr.clone(), mean_value, bias.clone());
         let vm = apo::variance_mean(
+            comm,
             batch.adv.clone(),
             batch.value.clone(),
             min_j_sq,

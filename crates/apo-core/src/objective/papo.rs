@@ -6,12 +6,14 @@
 //! vm, min_J_sq as in APO, with the clipped mean_surr
 //! objective = mean_surr − k (mv + vm)
 //! ```
-//! `clip(r)` clamps to `[1 − ε, 1 + ε]`. Returns are `[1]` tensors; inputs `[batch]`.
+//! `clip(r)` clamps to `[1 − ε, 1 + ε]`. Returns are `[1]` tensors; inputs `[batch]`; means are
+//! over every rank's batch ([`Comm::mean`]).
 
 use burn::tensor::backend::Backend;
 use burn::tensor::Tensor;
 
 use super::apo::variance_increment;
+use crate::collective::Comm;
 
 /// `clip(ratio)` to `[1 − clip, 1 + clip]` → `[batch]`.
 pub fn clip_ratio<B: Backend>(ratio: Tensor<B, 1>, clip: f64) -> Tensor<B, 1> {
@@ -20,17 +22,19 @@ pub fn clip_ratio<B: Backend>(ratio: Tensor<B, 1>, clip: f64) -> Tensor<B, 1> {
 
 /// PPO's clipped surrogate `mean(min(ratio · adv, clip(ratio) · adv))`.
 pub fn clipped_mean_surr<B: Backend>(
+    comm: &Comm,
     ratio: Tensor<B, 1>,
     adv: Tensor<B, 1>,
     clip: f64,
 ) -> Tensor<B, 1> {
     let unclipped = ratio.clone() * adv.clone();
     let clipped = clip_ratio(ratio, clip) * adv;
-    unclipped.min_pair(clipped).mean()
+    comm.mean(unclipped.min_pair(clipped))
 }
 
 /// The clipped MeanVariance term `ω1 · mean(min(t(ratio), t(clip(ratio))))`.
 pub fn clipped_mean_variance<B: Backend>(
+    comm: &Comm,
     ratio: Tensor<B, 1>,
     delta: Tensor<B, 1>,
     h: Tensor<B, 1>,
@@ -39,5 +43,5 @@ pub fn clipped_mean_variance<B: Backend>(
 ) -> Tensor<B, 1> {
     let unclipped = variance_increment(ratio.clone(), delta.clone(), h.clone());
     let clipped = variance_increment(clip_ratio(ratio, clip), delta, h);
-    unclipped.min_pair(clipped).mean().mul_scalar(omega1)
+    comm.mean(unclipped.min_pair(clipped)).mul_scalar(omega1)
 }

@@ -2,6 +2,7 @@
 //! wgpu (float32) and NdArray<f32> (its own binary). Every reference is computed in plain
 //! `f64` on the host (see `common/mod.rs`), never by the backend under test.
 
+use apo_core::collective::Comm;
 use apo_core::hvp::{gradient, hessian_vector_product, Autodiff2};
 use apo_core::objective::{apo, papo, ApoParams, HMax, Objective, VmpoParams};
 use apo_core::policy::{MlpPolicyConfig, Policy, PolicyFamily};
@@ -51,7 +52,7 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
     let ms_ref = (0..5).map(|i| ratio_ref[i] * d.adv[i]).sum::<f64>() / n;
     assert_rel(
         "mean_surr",
-        scalar(apo::mean_surr(ratio.clone(), t(&d.adv))),
+        scalar(apo::mean_surr(&Comm::default(), ratio.clone(), t(&d.adv))),
         ms_ref,
         tol,
     );
@@ -72,6 +73,7 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
     assert_rel(
         "mean_variance",
         scalar(apo::mean_variance(
+            &Comm::default(),
             ratio.clone(),
             t(&d.delta),
             t(&h),
@@ -90,9 +92,13 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
         h_max: HMax::Fixed(omega2),
         gamma,
     };
-    let hm = host(apo::h_max(&params, ratio.clone(), t(&d.adv), || {
-        panic!("fixed mode must not evaluate the KL")
-    }));
+    let hm = host(apo::h_max(
+        &Comm::default(),
+        &params,
+        ratio.clone(),
+        t(&d.adv),
+        || panic!("fixed mode must not evaluate the KL"),
+    ));
     for v in hm {
         assert_rel("h_max (fixed)", v, omega2, tol);
     }
@@ -108,6 +114,7 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
     assert_rel(
         "lower_bound_bias",
         scalar(apo::lower_bound_bias(
+            &Comm::default(),
             t(&d.logp),
             t(&d.logp_old),
             t(&d.adv),
@@ -146,6 +153,7 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
     for mjs in [0.0, 0.37] {
         let vm_ref = omega1 * (1.0 - gamma * gamma) / k * spread - mjs;
         let vm = scalar(apo::variance_mean(
+            &Comm::default(),
             t(&d.adv),
             t(&d.value),
             one(mjs),
@@ -160,6 +168,7 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
     let kl = 0.0123;
     let max_abs_adv = d.adv.iter().map(|a| a.abs()).fold(0.0, f64::max);
     let est = host(apo::estimated_h_max(
+        &Comm::default(),
         ratio.clone(),
         t(&d.adv),
         one(kl),
@@ -174,9 +183,13 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
         h_max: HMax::Estimated,
         ..params
     };
-    let hm = host(apo::h_max(&params_est, ratio.clone(), t(&d.adv), || {
-        one(kl)
-    }));
+    let hm = host(apo::h_max(
+        &Comm::default(),
+        &params_est,
+        ratio.clone(),
+        t(&d.adv),
+        || one(kl),
+    ));
     for i in 0..5 {
         assert_rel(&format!("h_max (estimated)[{i}]"), hm[i], est[i], tol);
     }
@@ -205,7 +218,12 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
         / n;
     assert_rel(
         "clipped_mean_surr",
-        scalar(papo::clipped_mean_surr(ratio.clone(), t(&d.adv), clip)),
+        scalar(papo::clipped_mean_surr(
+            &Comm::default(),
+            ratio.clone(),
+            t(&d.adv),
+            clip,
+        )),
         cms_ref,
         tol,
     );
@@ -220,6 +238,7 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
             .sum::<f64>()
         / n;
     let cmv = scalar(papo::clipped_mean_variance(
+        &Comm::default(),
         ratio,
         t(&d.delta),
         t(&h),
@@ -827,6 +846,7 @@ pub fn check_at_theta_j<B: Backend>(device: &B::Device, tol: f64) {
     // and the bias really is 0 at ratio 1
     let tb = on.to_tensors::<B>(device);
     let bias = scalar(apo::lower_bound_bias(
+        &Comm::default(),
         dist_b.log_prob(tb.actions.clone()),
         tb.logp_old.clone(),
         tb.adv.clone(),

@@ -569,6 +569,7 @@ impl RefBatch {
             delta: t1(&self.delta, device),
             adv: t1(&self.adv, device),
             ret: t1(&self.ret, device),
+            comm: apo_core::Comm::default(),
         }
     }
 }
