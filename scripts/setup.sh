@@ -11,11 +11,14 @@
 #   mesa-vulkan-drivers          a Vulkan driver (Mesa's software one on CPU-only machines) for --backend wgpu
 #   fonts-dejavu-core            the font `apo plot` writes its labels with
 #   strace                       the test that checkpoints are synced to disk watches the system calls
+#   libopenmpi-dev openmpi-bin   Open MPI, for data-parallel training (`cargo build --features mpi`)
+#   libclang-dev                 libclang, with which the `mpi` crate reads MPI's C header
 # Rust itself comes from rustup (https://rustup.rs); this script checks it is there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-packages=(build-essential pkg-config libmujoco-dev libmujoco-samples mesa-vulkan-drivers fonts-dejavu-core strace)
+packages=(build-essential pkg-config libmujoco-dev libmujoco-samples mesa-vulkan-drivers fonts-dejavu-core strace
+  libopenmpi-dev openmpi-bin libclang-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
