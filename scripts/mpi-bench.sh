@@ -1,26 +1,28 @@
 #!/usr/bin/env bash
-# Epoch wall time, env steps/s and the time split (rollout, update, MPI collectives) of APO on
-# Hopper at 30 000 steps per epoch, on 1 rank (2 environment threads) and 2 ranks (1 thread
-# each) of this machine. Needs the release binary built with the `mpi` feature:
+# Epoch wall time, env steps/s and the time split (rollout, policy update, value update, MPI
+# collectives) of APO on Hopper at 30 000 steps per epoch on this machine: 1 rank with 1
+# environment, 1 rank with 2 environments on 2 threads, and 2 ranks (1 environment each).
+# Needs the release binary built with the `mpi` feature:
 #   cargo build --release -p apo-cli --features mpi
-#   bash scripts/mpi-bench.sh [EPOCHS] [OUT_DIR]
+#   bash scripts/mpi-bench.sh [EPOCHS] [OUT_DIR]      (APO=path/to/apo to use another binary)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 epochs="${1:-3}"
 out="${2:-runs/mpi-bench}"
-apo=target/release/apo
+apo="${APO:-target/release/apo}"
 mkdir -p "$out"
 run() {
-  local ranks="$1" threads="$2" dir="$out/n$1"
+  local name="$1" ranks="$2" envs="$3" threads="$4" dir="$out/$1"
   mpirun --allow-run-as-root --oversubscribe -n "$ranks" "$apo" train --algo apo --env Hopper \
-    --steps-per-epoch 30000 --epochs "$epochs" --threads "$threads" --quiet --force --out "$dir" \
-    | tee "$dir.stdout"
+    --steps-per-epoch 30000 --epochs "$epochs" --num-envs "$envs" --threads "$threads" \
+    --quiet --force --out "$dir" > "$dir.stdout"
 }
-run 1 2
-run 2 1
-for n in 1 2; do
-  echo "== $n rank(s): epoch, time_s, rollout_s, update_pi_s, update_v_s, steps_per_s"
-  python3 - "$out/n$n/progress.csv" <<'PY'
+run n1-e1 1 1 1
+run n1-e2 1 2 2
+run n2-e1 2 1 1
+for name in n1-e1 n1-e2 n2-e1; do
+  echo "== $name: epoch, epoch_s, rollout_s, update_pi_s, update_v_s, steps_per_s"
+  python3 - "$out/$name/progress.csv" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
 prev = 0.0
@@ -31,5 +33,5 @@ for r in rows:
           round(float(r["steps_per_s"])))
     prev = t
 PY
-  grep "^MPI" "$out/n$n.stdout" || true
+  grep "^MPI" "$out/$name.stdout" || true
 done

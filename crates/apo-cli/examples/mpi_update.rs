@@ -63,7 +63,7 @@ fn main() -> anyhow::Result<()> {
     let (rank, size, n) = (comm.rank(), comm.size(), rollout.batch.len);
     let share = rollout.batch.rows(rank * n / size..(rank + 1) * n / size);
     let before = learner.policy_params();
-    learner.set_comm(comm)?;
+    learner.set_comm(comm);
     let report = learner.update(&share, &mut StdRng::seed_from_u64(5));
 
     let json = serde_json::json!({
@@ -79,6 +79,7 @@ fn main() -> anyhow::Result<()> {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max),
         "line_search": format!("{:?} {:?}", report.line_search, report.rejections),
+        "multipliers": learner.multipliers().map(|m| vec![m.eta, m.alpha]).unwrap_or_default(),
         "policy": learner.policy_params(),
         "value": learner.value_params(),
     });

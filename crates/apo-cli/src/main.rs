@@ -1145,14 +1145,17 @@ fn run_training(
     init_logging((comm.rank() == 0).then_some(run_dir))?;
     let signals = Signals::install()?;
     let mut bar = Bar::new(quiet, config);
+    let launch = trainer::Launch {
+        resume,
+        threads,
+        comm: comm.clone(),
+    };
     let end = match config.backend {
         BackendKind::Cpu => trainer::train::<burn::backend::NdArray>(
             config,
             run_dir,
             &Default::default(),
-            resume,
-            threads,
-            comm,
+            &launch,
             &signals.stop,
             &mut bar,
         ),
@@ -1162,9 +1165,7 @@ fn run_training(
                 config,
                 run_dir,
                 &Default::default(),
-                resume,
-                threads,
-                comm,
+                &launch,
                 &signals.stop,
                 &mut bar,
             )

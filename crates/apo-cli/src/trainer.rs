@@ -45,11 +45,32 @@ pub fn shapes(config: &RunConfig, observation_dim: usize, action: ActionKind) ->
     }
 }
 
-/// Trains (or, with `resume`, continues) the run in `run_dir` on backend `B`, the
-/// environments stepped on `threads` threads (0: the cores available; results do not depend
-/// on it), as rank `comm.rank()` of `comm.size()` (every rank calls it with the same
-/// arguments; rank 0 alone writes the run's files, the others only read the checkpoint when
-/// resuming). A checkpoint records the number of ranks and resuming with another is refused.
+/// How a process takes part in a run.
+#[derive(Debug, Clone)]
+pub struct Launch {
+    /// Continue the run from its latest checkpoint.
+    pub resume: bool,
+    /// Threads stepping the environments (0: the cores available; results do not depend on it).
+    pub threads: usize,
+    /// The ranks of a data-parallel run (one by default).
+    pub comm: Comm,
+}
+
+impl Launch {
+    /// A new run in one process, the environments stepped on `threads` threads.
+    pub fn new(threads: usize) -> Self {
+        Self {
+            resume: false,
+            threads,
+            comm: Comm::default(),
+        }
+    }
+}
+
+/// Trains (or, with `launch.resume`, continues) the run in `run_dir` on backend `B`, as rank
+/// `comm.rank()` of `comm.size()` (every rank calls it with the same arguments; rank 0 alone
+/// writes the run's files, the others only read the checkpoint when resuming). A checkpoint
+/// records the number of ranks and resuming with another is refused.
 ///
 /// Resuming checks that the checkpoint and `progress.csv` agree (rows of every completed epoch,
 /// with matching step counts) and refuses with the reason when they don't. An update that
@@ -59,12 +80,15 @@ pub fn train<B: Backend>(
     config: &RunConfig,
     run_dir: &Path,
     device: &B::Device,
-    resume: bool,
-    threads: usize,
-    comm: &Comm,
+    launch: &Launch,
     stop: &AtomicBool,
     observer: &mut dyn Observer,
 ) -> anyhow::Result<TrainEnd> {
+    let Launch {
+        resume,
+        threads,
+        ref comm,
+    } = *launch;
     let mut trainer = Trainer::<B, _, _>::mlp(config.train.clone(), device, threads)?;
     trainer
         .learner_mut()

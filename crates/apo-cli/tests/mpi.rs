@@ -2,7 +2,7 @@
 //! built with the `mpi` feature:
 //!
 //! * one update on two ranks leaves bitwise equal parameters on both, and equals the
-//!   one-process update of the whole batch within 1e-5 (APO, PAPO, TRPO; the
+//!   one-process update of the whole batch within 1e-5 (APO, PAPO, TRPO, V-MPO; the
 //!   `mpi_update` example);
 //! * `mpirun -n 2 apo train` twice with the same seed writes the same `progress.csv`;
 //! * a 2-rank run interrupted and resumed on 2 ranks equals the uninterrupted one, and
@@ -73,6 +73,7 @@ fn two_rank_update_equals_the_whole_batch_update_and_ranks_agree_bitwise() {
         ("apo", None),
         ("papo", None),
         ("trpo", Some("algo.trpo.trust_region.cg_iters=5")),
+        ("vmpo", None),
     ] {
         let out = tmp.path().join(algo);
         let dir = out.to_str().expect("utf-8");
@@ -89,7 +90,8 @@ fn two_rank_update_equals_the_whole_batch_update_and_ranks_agree_bitwise() {
             r0["rows"].as_u64().unwrap() + r1["rows"].as_u64().unwrap(),
             2000
         );
-        for key in ["policy", "value"] {
+        // V-MPO's η and α too (empty for the others)
+        for key in ["policy", "value", "multipliers"] {
             let (a, b) = (floats(&r0, key), floats(&r1, key));
             assert!(
                 a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
@@ -107,6 +109,17 @@ fn two_rank_update_equals_the_whole_batch_update_and_ranks_agree_bitwise() {
                 "{algo}: {key} differs from the whole-batch update by {diff}"
             );
         }
+        // the update's numbers too: every global mean has the same bits on every rank
+        for key in ["loss_pi", "kl", "loss_v"] {
+            let (a, b) = (r0[key].as_f64().unwrap(), r1[key].as_f64().unwrap());
+            assert_eq!(
+                a.to_bits(),
+                b.to_bits(),
+                "{algo}: the ranks' {key} differ: {a} vs {b}"
+            );
+        }
+        let learned = if algo == "vmpo" { 2 } else { 0 };
+        assert_eq!(floats(&whole, "multipliers").len(), learned, "{algo}");
         // the update moved the policy well beyond the tolerance
         let moved = whole["moved"].as_f64().unwrap();
         assert!(
@@ -127,7 +140,8 @@ fn apo_bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_apo"))
 }
 
-/// `mpirun -n <ranks> apo train` of APO on Pendulum (`extra` appended).
+/// `mpirun -n <ranks> apo train` of APO on Pendulum with observation normalization (`extra`
+/// appended).
 fn train(ranks: usize, dir: &Path, extra: &[&str]) -> Output {
     let mut args = vec![
         "train",
@@ -139,6 +153,8 @@ fn train(ranks: usize, dir: &Path, extra: &[&str]) -> Output {
         "800",
         "--seed",
         "3",
+        "--set",
+        "normalize_obs=true",
         "--quiet",
         "--out",
         dir.to_str().expect("utf-8"),
@@ -196,6 +212,13 @@ fn same_seed_and_ranks_give_identical_progress_and_resume_continues_exactly() {
     assert!(
         state.contains("\"ranks\": 2"),
         "the checkpoint records the ranks: {state}"
+    );
+    // the observation normalizer holds both ranks' observations: 2 epochs × 800 steps
+    let state: serde_json::Value = serde_json::from_str(&state).expect("json");
+    assert_eq!(
+        state["normalizer"]["count"].as_f64(),
+        Some(1600.0),
+        "{state}"
     );
     let refused = mpirun(
         1,

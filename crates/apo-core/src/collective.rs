@@ -9,7 +9,7 @@
 //! [`Comm::mean`] returns
 //!
 //! ```text
-//! m̃_r = s_r/n + sg(m − s_r/n),     m = Σ_r s_r / n   (summed across ranks)
+//! m̃_r = m + (s_r/n − sg(s_r/n)),     m = Σ_r s_r / n   (summed across ranks)
 //! ```
 //!
 //! whose value is the global mean `m` on every rank and whose gradient is `∇s_r / n`, rank `r`'s
@@ -140,10 +140,10 @@ impl Comm {
         self.0.sum(&mut totals);
         let n = totals[1].max(1.0);
         let share = local.div_scalar(n);
-        let rest =
-            Tensor::<B, 1>::from_data(TensorData::new(vec![totals[0] / n], [1]), &share.device())
-                - share.clone().detach();
-        share + rest
+        let global =
+            Tensor::<B, 1>::from_data(TensorData::new(vec![totals[0] / n], [1]), &share.device());
+        // `share − sg(share)` is exactly 0: the value is the global mean's bits on every rank
+        global + (share.clone() - share.detach())
     }
 
     /// The maximum of the constant `x` (`[n_r]`) over every rank's part → `[1]`, without

@@ -150,19 +150,8 @@ where
     /// Makes every update one update over the union of the batches of `comm`'s ranks
     /// ([`crate::collective`]): each rank passes its own part to [`Learner::update`] and every
     /// rank ends with the same networks. The default is one rank.
-    ///
-    /// # Errors
-    /// For V-MPO with more than one rank (its top half and softmax over the union of the
-    /// batches are not implemented).
-    pub fn set_comm(&mut self, comm: Comm) -> Result<(), ConfigError> {
-        crate::validate::check(
-            !(comm.is_distributed() && matches!(self.config.objective(), Objective::Vmpo(_))),
-            "algo",
-            "vmpo",
-            "V-MPO does not run on more than one rank yet",
-        )?;
+    pub fn set_comm(&mut self, comm: Comm) {
         self.comm = comm;
-        Ok(())
     }
 
     /// The ranks an update spans.

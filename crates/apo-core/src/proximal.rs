@@ -202,7 +202,10 @@ where
                         VmpoTerms::new(&dist, logp, part, params, eta.clone(), alpha.clone());
                     let grads = terms.loss().backward();
                     let grad = |t: Tensor<AB, 1>| t.grad(&grads).map_or(0.0, |g| to_host(g)[0]);
-                    m.step(grad(eta), grad(alpha), config.lr);
+                    let (grad_eta, grad_alpha) = terms
+                        .multiplier_grads
+                        .unwrap_or_else(|| (grad(eta), grad(alpha)));
+                    m.step(grad_eta, grad_alpha, config.lr);
                     grads
                 }
                 _ => objective.evaluate(&dist, part).objective.neg().backward(),

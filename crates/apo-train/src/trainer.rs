@@ -190,8 +190,7 @@ where
     ///
     /// # Errors
     /// [`TrainError::Config`] when `steps_per_epoch` is not a multiple of the number of ranks
-    /// or leaves a rank fewer steps than `num_envs`, or the algorithm cannot run on several
-    /// ranks.
+    /// or leaves a rank fewer steps than `num_envs`.
     pub fn distribute(&mut self, comm: Comm) -> Result<(), TrainError> {
         let (ranks, steps) = (comm.size(), self.config.steps_per_epoch);
         if !steps.is_multiple_of(ranks) || steps / ranks < self.config.num_envs {
@@ -204,7 +203,7 @@ where
                 ),
             }));
         }
-        self.learner.set_comm(comm.clone())?;
+        self.learner.set_comm(comm.clone());
         self.collector.distribute(comm.clone(), steps / ranks);
         self.comm = comm;
         Ok(())

@@ -202,9 +202,7 @@ fn progress_advances_within_the_epoch() {
         &config,
         tmp.path(),
         &Default::default(),
-        false,
-        1,
-        &apo_core::Comm::default(),
+        &trainer::Launch::new(1),
         &AtomicBool::new(false),
         &mut seen,
     )

@@ -13,6 +13,13 @@
 //! `sg` stops the gradient. The temperature η and the Lagrange multiplier α are learned with
 //! the policy by Adam at the policy's learning rate and clamped to `≥` [`MIN_MULTIPLIER`]
 //! after each step ([`Multipliers`]). Inputs are `[n]` tensors; the terms are `[1]`.
+//!
+//! On several ranks ([`crate::collective`]) the top half, ψ's softmax and the means are over the
+//! union of the ranks' batches (ties in rank order, then row order): the advantages are
+//! gathered, and ψ and `log mean exp` computed from all of them. The gradients of η and α
+//! are then taken in closed form (`∂/∂η = ε_η + log mean exp(adv_top/η) − Σ ψ·adv_top / η`,
+//! `∂/∂α = ε_α − KL`), since every rank holds their terms whole and autodiff's would be
+//! counted once per rank.
 
 use burn::tensor::activation::softmax;
 use burn::tensor::backend::Backend;
@@ -59,6 +66,15 @@ fn log_mean_exp<B: Backend>(x: Tensor<B, 1>) -> Tensor<B, 1> {
     (x - max.clone().expand([n])).exp().sum().log() + max - (n as f64).ln()
 }
 
+/// `α (ε_α − sg(KL)) + sg(α) · KL` → `[1]`.
+fn trust_region_loss<B: Backend>(
+    alpha: Tensor<B, 1>,
+    kl: Tensor<B, 1>,
+    eps_alpha: f64,
+) -> Tensor<B, 1> {
+    alpha.clone() * kl.clone().detach().neg().add_scalar(eps_alpha) + alpha.detach() * kl
+}
+
 /// V-MPO's terms for the policy's distributions `dist` on `batch`, with the temperature `eta`
 /// and the multiplier `alpha` (`[1]` each; leaves that require gradients when they are
 /// learned, constants otherwise).
@@ -72,6 +88,9 @@ pub struct VmpoTerms<B: Backend> {
     pub trust_region_loss: Tensor<B, 1>,
     /// The mean `KL(π_old ‖ π_θ)` over the batch.
     pub kl: Tensor<B, 1>,
+    /// `(∂loss/∂η, ∂loss/∂α)` in closed form, when the batch spans several ranks (else
+    /// `None`: take them from autodiff).
+    pub multiplier_grads: Option<(f64, f64)>,
 }
 
 impl<B: Backend> VmpoTerms<B> {
@@ -84,6 +103,9 @@ impl<B: Backend> VmpoTerms<B> {
         eta: Tensor<B, 1>,
         alpha: Tensor<B, 1>,
     ) -> Self {
+        if batch.comm.is_distributed() {
+            return Self::across_ranks(dist, logp, batch, params, eta, alpha);
+        }
         let device = batch.adv.device();
         let top = top_half(&to_host(batch.adv.clone()));
         let n_top = top.len();
@@ -99,14 +121,70 @@ impl<B: Backend> VmpoTerms<B> {
         let temperature_loss = eta.clone().mul_scalar(params.eps_eta)
             + eta.clone() * log_mean_exp(adv_top / eta.expand([n_top]));
         let kl = dist.kl_from(&batch.dist_old).mean();
-        let trust_region_loss = alpha.clone()
-            * kl.clone().detach().neg().add_scalar(params.eps_alpha)
-            + alpha.detach() * kl.clone();
+        let trust_region_loss = trust_region_loss(alpha, kl.clone(), params.eps_alpha);
         Self {
             policy_loss,
             temperature_loss,
             trust_region_loss,
             kl,
+            multiplier_grads: None,
+        }
+    }
+
+    /// [`VmpoTerms::new`] over the union of the batches of `batch.comm`'s ranks.
+    fn across_ranks(
+        dist: &DistParams<B>,
+        logp: Tensor<B, 1>,
+        batch: &TensorBatch<B>,
+        params: &VmpoParams,
+        eta: Tensor<B, 1>,
+        alpha: Tensor<B, 1>,
+    ) -> Self {
+        let device = batch.adv.device();
+        let comm = &batch.comm;
+        let parts = comm.gather(&to_host(batch.adv.clone()));
+        let offset: usize = parts[..comm.rank()].iter().map(Vec::len).sum();
+        let local = parts.get(comm.rank()).map_or(0, Vec::len);
+        let all: Vec<f64> = parts.concat();
+        let top = top_half(&all);
+        // ψ and log mean exp(adv_top/η) over the global top half, with η a constant
+        let eta_value = to_host(eta.clone().detach())[0];
+        let scaled: Vec<f64> = top.iter().map(|&i| all[i] / eta_value).collect();
+        let max = scaled.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let sum_exp: f64 = scaled.iter().map(|x| (x - max).exp()).sum();
+        let log_mean_exp = max + sum_exp.ln() - (top.len().max(1) as f64).ln();
+        let log_sum_exp = max + sum_exp.ln();
+        let psi_adv: f64 = top
+            .iter()
+            .zip(&scaled)
+            .map(|(&i, x)| (x - log_sum_exp).exp() * all[i])
+            .sum();
+        let (rows, psi): (Vec<i64>, Vec<f64>) = top
+            .iter()
+            .zip(&scaled)
+            .filter(|(&i, _)| (offset..offset + local).contains(&i))
+            .map(|(&i, x)| ((i - offset) as i64, (x - log_sum_exp).exp()))
+            .unzip();
+        let idx = Tensor::<B, 1, Int>::from_data(TensorData::new(rows, [psi.len()]), &device);
+        let psi = Tensor::<B, 1>::from_data(TensorData::new(psi.clone(), [psi.len()]), &device);
+        // Σ over the global top = (number of top rows) · mean over them
+        let policy_loss = comm
+            .mean(psi * logp.select(0, idx))
+            .mul_scalar(top.len() as f64)
+            .neg();
+        let temperature_loss = eta.mul_scalar(params.eps_eta + log_mean_exp);
+        let kl = comm.mean(dist.kl_from(&batch.dist_old));
+        let kl_value = to_host(kl.clone().detach())[0];
+        let trust_region_loss = trust_region_loss(alpha, kl.clone(), params.eps_alpha);
+        Self {
+            policy_loss,
+            temperature_loss,
+            trust_region_loss,
+            kl,
+            multiplier_grads: Some((
+                params.eps_eta + log_mean_exp - psi_adv / eta_value,
+                params.eps_alpha - kl_value,
+            )),
         }
     }
 
