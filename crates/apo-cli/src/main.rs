@@ -1187,11 +1187,18 @@ fn run_training(
                 s if s == signal_hook::consts::SIGTERM as usize => "SIGTERM",
                 _ => "SIGINT",
             };
-            println!(
-                "interrupted by {name} after epoch {epoch} of {}; checkpoint written. Continue with: apo train --resume {}",
-                config.train.epochs,
-                run_dir.display()
-            );
+            if comm.rank() == 0 {
+                let launcher = if comm.is_distributed() {
+                    format!("mpirun -n {} ", comm.size())
+                } else {
+                    String::new()
+                };
+                println!(
+                    "interrupted by {name} after epoch {epoch} of {}; checkpoint written. Continue with: {launcher}apo train --resume {}",
+                    config.train.epochs,
+                    run_dir.display()
+                );
+            }
             Ok(ExitCode::from(interrupted_status(signal)))
         }
     }

@@ -140,26 +140,30 @@ fn apo_bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_apo"))
 }
 
-/// `mpirun -n <ranks> apo train` of APO on Pendulum with observation normalization (`extra`
-/// appended).
-fn train(ranks: usize, dir: &Path, extra: &[&str]) -> Output {
-    let mut args = vec![
+/// The arguments of `apo train` of APO on Pendulum into `dir`, `steps` per epoch, `epochs`
+/// epochs.
+fn apo_args<'a>(dir: &'a str, steps: &'a str, epochs: &'a str) -> Vec<&'a str> {
+    vec![
         "train",
         "--algo",
         "apo",
         "--env",
         "Pendulum-v1",
         "--steps-per-epoch",
-        "800",
-        "--seed",
-        "3",
-        "--set",
-        "normalize_obs=true",
+        steps,
+        "--epochs",
+        epochs,
         "--quiet",
         "--out",
-        dir.to_str().expect("utf-8"),
-    ];
-    args.extend_from_slice(extra);
+        dir,
+    ]
+}
+
+/// `mpirun -n <ranks> apo train` of APO on Pendulum, 800 steps per epoch, seed 3, with
+/// observation normalization.
+fn train(ranks: usize, dir: &Path, epochs: &str) -> Output {
+    let mut args = apo_args(dir.to_str().expect("utf-8"), "800", epochs);
+    args.extend_from_slice(&["--seed", "3", "--set", "normalize_obs=true"]);
     mpirun(ranks, &apo_bin(), &args)
 }
 
@@ -168,14 +172,7 @@ fn timeless(dir: &Path) -> Vec<ProgressRow> {
     progress::read(&dir.join("progress.csv"))
         .expect("progress.csv")
         .into_iter()
-        .map(|r| ProgressRow {
-            steps_per_s: 0.0,
-            time_s: 0.0,
-            rollout_s: 0.0,
-            update_pi_s: 0.0,
-            update_v_s: 0.0,
-            ..r
-        })
+        .map(ProgressRow::timeless)
         .collect()
 }
 
@@ -187,7 +184,7 @@ fn same_seed_and_ranks_give_identical_progress_and_resume_continues_exactly() {
         tmp.path().join("b"),
         tmp.path().join("c"),
     );
-    let out = succeeded(&train(2, &a, &["--epochs", "4"]), "2-rank run a");
+    let out = succeeded(&train(2, &a, "4"), "2-rank run a");
     assert!(
         out.contains("MPI: 2 ranks"),
         "rank 0 reports the traffic: {out}"
@@ -197,7 +194,7 @@ fn same_seed_and_ranks_give_identical_progress_and_resume_continues_exactly() {
         1,
         "rank 0 alone reports: {out}"
     );
-    succeeded(&train(2, &b, &["--epochs", "4"]), "2-rank run b");
+    succeeded(&train(2, &b, "4"), "2-rank run b");
     let rows = timeless(&a);
     assert_eq!(rows.len(), 4);
     assert_eq!(rows, timeless(&b));
@@ -206,7 +203,7 @@ fn same_seed_and_ranks_give_identical_progress_and_resume_continues_exactly() {
     assert_eq!(rows[0].episodes, 4);
 
     // interrupted after 2 epochs (a shorter run), then resumed to 4 on 2 ranks
-    succeeded(&train(2, &c, &["--epochs", "2"]), "2-rank run c");
+    succeeded(&train(2, &c, "2"), "2-rank run c");
     let c_dir = c.to_str().expect("utf-8");
     let state = std::fs::read_to_string(c.join("checkpoints/latest/state.json")).expect("state");
     assert!(
@@ -251,23 +248,11 @@ fn a_setting_refused_on_every_rank_ends_the_job_with_the_reason() {
     // 801 steps cannot be split over 2 ranks
     let tmp = tempfile::tempdir().expect("tempdir");
     let dir = tmp.path().join("r");
-    let args = [
-        "train",
-        "--algo",
-        "apo",
-        "--env",
-        "Pendulum-v1",
-        "--epochs",
-        "2",
-    ];
-    let tail = [
-        "--steps-per-epoch",
-        "801",
-        "--quiet",
-        "--out",
-        dir.to_str().expect("utf-8"),
-    ];
-    let out = mpirun(2, &apo_bin(), &[&args[..], &tail[..]].concat());
+    let out = mpirun(
+        2,
+        &apo_bin(),
+        &apo_args(dir.to_str().expect("utf-8"), "801", "2"),
+    );
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("steps_per_epoch"), "{stderr}");
@@ -299,16 +284,7 @@ fn a_rank_that_dies_ends_the_whole_job_instead_of_hanging() {
     let mut child = Command::new("mpirun")
         .args(["--allow-run-as-root", "--oversubscribe", "-n", "2"])
         .arg(apo_bin())
-        .args([
-            "train",
-            "--algo",
-            "apo",
-            "--env",
-            "Pendulum-v1",
-            "--epochs",
-            "1000",
-        ])
-        .args(["--steps-per-epoch", "800", "--quiet", "--out", &dir_s])
+        .args(apo_args(&dir_s, "800", "1000"))
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -336,4 +312,70 @@ fn a_rank_that_dies_ends_the_whole_job_instead_of_hanging() {
         std::thread::sleep(std::time::Duration::from_millis(100));
     };
     assert!(!status.success(), "the job must fail when a rank dies");
+    // mpirun names the rank and how it died
+    let mut stderr = String::new();
+    if let Some(mut pipe) = child.stderr.take() {
+        std::io::Read::read_to_string(&mut pipe, &mut stderr).expect("stderr");
+    }
+    assert!(
+        stderr.contains("rank 1") && stderr.contains("signal 9"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_signal_to_mpirun_checkpoints_every_rank_and_the_run_resumes_exactly() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (stopped, whole) = (tmp.path().join("stopped"), tmp.path().join("whole"));
+    let stopped_s = stopped.to_str().expect("utf-8").to_string();
+    let child = Command::new("mpirun")
+        .args(["--allow-run-as-root", "--oversubscribe", "-n", "2"])
+        .arg(apo_bin())
+        .args(apo_args(&stopped_s, "800", "1000"))
+        .args(["--seed", "3", "--set", "normalize_obs=true"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("mpirun starts");
+    let start = std::time::Instant::now();
+    while !stopped.join("progress.csv").exists() {
+        assert!(start.elapsed().as_secs() < 120, "no epoch finished");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    // mpirun forwards SIGTERM to every rank
+    let sent = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status();
+    assert!(sent.expect("kill runs").success());
+    let out = child.wait_with_output().expect("mpirun ends");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        stdout.matches("checkpoint written").count(),
+        1,
+        "rank 0 alone reports the interrupt: {stdout}"
+    );
+    assert!(
+        stdout.contains("mpirun -n 2 apo train --resume"),
+        "{stdout}"
+    );
+    let state: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(stopped.join("checkpoints/latest/state.json")).expect("state"),
+    )
+    .expect("json");
+    let done = state["epoch"].as_u64().expect("epoch");
+    assert!((1..1000).contains(&done), "{state}");
+    // resume to two epochs more, and compare with a run that was never stopped
+    let target = (done + 2).to_string();
+    succeeded(
+        &mpirun(
+            2,
+            &apo_bin(),
+            &[
+                "train", "--resume", &stopped_s, "--epochs", &target, "--quiet",
+            ],
+        ),
+        "2-rank resume after the signal",
+    );
+    succeeded(&train(2, &whole, &target), "2-rank uninterrupted run");
+    assert_eq!(timeless(&stopped), timeless(&whole));
 }

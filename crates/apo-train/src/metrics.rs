@@ -104,6 +104,19 @@ pub struct EpochTimes {
 }
 
 impl ProgressRow {
+    /// The row with its wall-clock columns ([`TIME_COLUMNS`]) zeroed: what two runs with the
+    /// same seed must agree on.
+    pub fn timeless(self) -> Self {
+        Self {
+            steps_per_s: 0.0,
+            time_s: 0.0,
+            rollout_s: 0.0,
+            update_pi_s: 0.0,
+            update_v_s: 0.0,
+            ..self
+        }
+    }
+
     /// A row from an epoch's episode statistics and update report.
     pub fn new(
         epoch: usize,

@@ -66,14 +66,7 @@ pub fn timeless(dir: &Path) -> Vec<ProgressRow> {
     progress::read(&dir.join("progress.csv"))
         .expect("progress.csv")
         .into_iter()
-        .map(|r| ProgressRow {
-            steps_per_s: 0.0,
-            time_s: 0.0,
-            rollout_s: 0.0,
-            update_pi_s: 0.0,
-            update_v_s: 0.0,
-            ..r
-        })
+        .map(ProgressRow::timeless)
         .collect()
 }
 
