@@ -13,6 +13,9 @@
 #   strace                       the test that checkpoints are synced to disk watches the system calls
 #   libopenmpi-dev openmpi-bin   Open MPI, for data-parallel training (`cargo build --features mpi`)
 #   libclang-dev                 libclang, with which the `mpi` crate reads MPI's C header
+# and fetches from PyPI, checksums checked (scripts/atari_assets.py): the Arcade Learning
+# Environment's source archive (ale-py 0.12.1, into .cache/) and the Atari ROMs of the ale-py
+# wheel (into $APO_ROM_DIR or ~/.local/share/apo/roms).
 # Rust itself comes from rustup (https://rustup.rs); this script checks it is there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,6 +33,9 @@ if [ ${#missing[@]} -gt 0 ]; then
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
+
+# the ALE's source archive and the Atari ROMs, from PyPI (apo-atari; checksums checked)
+python3 scripts/atari_assets.py
 
 if [ "${1:-}" = "--deps-only" ]; then
   exit 0

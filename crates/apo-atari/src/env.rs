@@ -1,0 +1,85 @@
+//! Gymnasium's `ALE/<Game>-v5` with RAM observations, on an [`Emulator`]: frame skip 4
+//! (the 4 frames' rewards summed), sticky actions with repeat probability 0.25, the minimal
+//! action set, episodes ending at game over (terminated) or after 108 000 frames (truncated),
+//! observations the 128 RAM bytes as `f32` in 0–255, and a seeded reset that reseeds the ALE
+//! as ale-py does ([`crate::ale_seed`]) and reloads the ROM.
+
+use std::path::Path;
+
+use apo_envs::{Action, Env, Space, Transition};
+
+use crate::{ale_seed, AtariError, Emulator};
+
+/// v5's frames per step.
+pub const FRAMESKIP: usize = 4;
+/// v5's sticky-action probability.
+pub const REPEAT_ACTION_PROBABILITY: f32 = 0.25;
+/// v5's frame limit per episode.
+pub const MAX_FRAMES: i32 = 108_000;
+
+/// One game as a v5 environment with RAM observations.
+#[derive(Debug)]
+pub struct AtariEnv {
+    emulator: Emulator,
+    observation_space: Space,
+    action_space: Space,
+    ram: [u8; 128],
+}
+
+impl AtariEnv {
+    /// The game of `rom` (a ROM file the ALE supports).
+    ///
+    /// # Errors
+    /// When the ROM is missing or unknown, or the ALE refuses it.
+    pub fn new(rom: &Path) -> Result<Self, AtariError> {
+        let emulator = Emulator::new(rom, ale_seed(0), REPEAT_ACTION_PROBABILITY, MAX_FRAMES)?;
+        let n = emulator.num_actions();
+        Ok(Self {
+            emulator,
+            observation_space: Space::uniform_box(128, 0.0, 255.0),
+            action_space: Space::Discrete { n },
+            ram: [0; 128],
+        })
+    }
+
+    fn observe(&mut self, obs: &mut [f32]) {
+        self.emulator.ram(&mut self.ram);
+        for (o, &b) in obs.iter_mut().zip(&self.ram) {
+            *o = f32::from(b);
+        }
+    }
+}
+
+impl Env for AtariEnv {
+    fn observation_space(&self) -> &Space {
+        &self.observation_space
+    }
+
+    fn action_space(&self) -> &Space {
+        &self.action_space
+    }
+
+    fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
+        // errors here mean the ROM vanished mid-run; the emulator keeps its last game then
+        let _ = self.emulator.reset(seed.map(ale_seed));
+        self.observe(obs);
+    }
+
+    fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
+        let a = match action {
+            Action::Discrete(a) => a,
+            Action::Continuous(_) => 0,
+        };
+        let mut reward = 0.0;
+        for _ in 0..FRAMESKIP {
+            reward += f64::from(self.emulator.act(a).unwrap_or(0));
+        }
+        self.observe(obs);
+        Transition {
+            reward,
+            terminated: self.emulator.game_over(),
+            truncated: self.emulator.truncated(),
+            info: Default::default(),
+        }
+    }
+}
