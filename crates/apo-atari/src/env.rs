@@ -60,7 +60,8 @@ impl Env for AtariEnv {
     }
 
     fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
-        // errors here mean the ROM vanished mid-run; the emulator keeps its last game then
+        // an error here (the ROM file vanished mid-run) leaves the last game loaded; a step that
+        // then fails ends its episode as an instability
         let _ = self.emulator.reset(seed.map(ale_seed));
         self.observe(obs);
     }
@@ -72,7 +73,20 @@ impl Env for AtariEnv {
         };
         let mut reward = 0.0;
         for _ in 0..FRAMESKIP {
-            reward += f64::from(self.emulator.act(a).unwrap_or(0));
+            match self.emulator.act(a) {
+                Ok(r) => reward += f64::from(r),
+                Err(_) => {
+                    // the emulator refused: end the episode as an instability (counted, not
+                    // trusted), never a panic
+                    self.observe(obs);
+                    return Transition {
+                        reward,
+                        terminated: true,
+                        truncated: false,
+                        info: apo_envs::StepInfo { unstable: true },
+                    };
+                }
+            }
         }
         self.observe(obs);
         Transition {
