@@ -8,11 +8,12 @@ cd "$(dirname "$0")/.."
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
 cargo test --workspace
-# data-parallel training under Open MPI's mpirun (feature `mpi` of apo-cli): builds the
-# feature's binary and its `mpi_update` example, then runs the tests that launch them
-cargo clippy -p apo-cli --features mpi --all-targets -- -D warnings
-cargo build -p apo-cli --features mpi --profile test --bin apo --example mpi_update
-cargo test -p apo-cli --features mpi --test mpi
+# apo-cli's opt-in features, built once together: data-parallel training under Open MPI's
+# mpirun (`mpi`: the binary and its `mpi_update` example, then the tests that launch them) and
+# the Atari games (`atari`: listed, trained, resumed, evaluated from the command line)
+cargo clippy -p apo-cli --features mpi,atari --all-targets -- -D warnings
+cargo build -p apo-cli --features mpi,atari --profile test --bin apo --example mpi_update
+cargo test -p apo-cli --features mpi,atari --test mpi --test atari
 # the training-library examples, a few hundred environment steps each (built by `cargo test`)
 cargo run --profile test -q -p apo-train --example train_hopper -- 2 200
 cargo run --profile test -q -p apo-train --example custom_policy -- 5

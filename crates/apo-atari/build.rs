@@ -67,7 +67,7 @@ fn main() {
     cc::Build::new()
         .cpp(true)
         .std("c++17")
-        .opt_level(2)
+        .opt_level(3)
         .warnings(false)
         // as ale-py's release build: its asserts (one refuses the negative int32 seeds that
         // ale-py passes) are compiled out

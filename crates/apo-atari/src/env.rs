@@ -16,6 +16,8 @@ pub const FRAMESKIP: usize = 4;
 pub const REPEAT_ACTION_PROBABILITY: f32 = 0.25;
 /// v5's frame limit per episode.
 pub const MAX_FRAMES: i32 = 108_000;
+/// The observation's length: the console's 128 bytes of RAM.
+pub const RAM_SIZE: usize = 128;
 
 /// One game as a v5 environment with RAM observations.
 #[derive(Debug)]
@@ -23,7 +25,7 @@ pub struct AtariEnv {
     emulator: Emulator,
     observation_space: Space,
     action_space: Space,
-    ram: [u8; 128],
+    ram: [u8; RAM_SIZE],
 }
 
 impl AtariEnv {
@@ -36,9 +38,9 @@ impl AtariEnv {
         let n = emulator.num_actions();
         Ok(Self {
             emulator,
-            observation_space: Space::uniform_box(128, 0.0, 255.0),
+            observation_space: Space::uniform_box(RAM_SIZE, 0.0, 255.0),
             action_space: Space::Discrete { n },
-            ram: [0; 128],
+            ram: [0; RAM_SIZE],
         })
     }
 

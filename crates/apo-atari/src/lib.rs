@@ -1,15 +1,26 @@
 //! # apo-atari (GPL-2.0, opt-in)
 //!
 //! Atari 2600 games through the Arcade Learning Environment (ALE 0.12.1, compiled from the
-//! `ale-py` source archive by `build.rs`). Work in progress: the emulator binding; the
-//! Gymnasium `ALE/<Game>-v5` environments come next.
+//! `ale-py` source archive by `build.rs`): the emulator ([`Emulator`]), Gymnasium's
+//! `ALE/<Game>-v5` with RAM observations ([`AtariEnv`]) and the paper's 62 games
+//! ([`GAMES`], registered with apo-envs by [`register_games`]).
+//!
+//! ```no_run
+//! apo_atari::register_games()?;
+//! let mut env = apo_envs::make("ALE/Pong-v5")?;
+//! let mut ram = [0.0f32; apo_atari::RAM_SIZE];
+//! env.reset(Some(7), &mut ram);
+//! let step = env.step(apo_envs::Action::Discrete(1), &mut ram);
+//! # let _ = step;
+//! # Ok::<(), apo_envs::EnvError>(())
+//! ```
 
 mod env;
 mod games;
 mod seed;
 
-pub use env::AtariEnv;
-pub use games::{register_games, rom_dir, rom_file, GAMES};
+pub use env::{AtariEnv, FRAMESKIP, MAX_FRAMES, RAM_SIZE, REPEAT_ACTION_PROBABILITY};
+pub use games::{find, register_games, rom_dir, rom_file, Game, GAMES};
 pub use seed::ale_seed;
 
 use std::ffi::{c_char, c_int, c_void, CStr, CString};

@@ -352,6 +352,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("bootstrap_time_limit", "bootstrap episodes cut by the time limit from V(final observation); false: from 0, as the paper's code on Gym MuJoCo; true/false"),
     ("actions", "how Gaussian actions reach the environment: \"rescale\" (policy acts in [-1, 1], mapped to the box and clipped) or \"raw\" (unscaled, unclipped, as the paper's code)"),
     ("episode_reset", "how episodes start: \"epoch\" (each epoch reseeds from the run's seed, later episodes continue the stream) or \"run_seed\" (every episode reset with the run's seed, as the paper's code on Gym MuJoCo)"),
+    ("max_episode_steps", "truncate episodes after this many steps (the paper's maximum trajectory length, 1000 on every suite); 0 = the environment's registered limit (`apo list`)"),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];
 
@@ -863,6 +864,24 @@ mod tests {
                 .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
             assert_eq!(c, RunConfig::defaults(algo, "x"), "{}", file.display());
         }
+        // the Atari configs: the defaults with 500 epochs and 1 000-step trajectories
+        let atari = std::fs::read_dir(configs.join("atari")).expect("configs/atari");
+        let mut algorithms = Vec::new();
+        for file in atari.map(|e| e.expect("an entry").path()) {
+            let algo = file_algorithm(&file)
+                .ok()
+                .flatten()
+                .unwrap_or_else(|| panic!("{}: no algorithm section", file.display()));
+            let c = RunConfig::build(algo, "x", Some(&file), &[])
+                .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+            let mut paper = RunConfig::defaults(algo, "x");
+            paper.train.epochs = 500;
+            paper.train.max_episode_steps = 1000;
+            assert_eq!(c, paper, "{}", file.display());
+            algorithms.push(algo.to_string());
+        }
+        algorithms.sort();
+        assert_eq!(algorithms, ["a2c", "apo", "papo", "ppo", "trpo"]);
         // the tuned configs: each names its algorithm and builds
         let tuned = std::fs::read_dir(configs.join("tuned")).expect("configs/tuned");
         for file in tuned.map(|e| e.expect("an entry").path()) {

@@ -365,6 +365,11 @@ fn interrupted_status(signal: usize) -> u8 {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    #[cfg(feature = "atari")]
+    if let Err(e) = apo_atari::register_games() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Train(args) => train_on_ranks(args),
         Command::List => list().map(|()| ExitCode::SUCCESS),
@@ -417,8 +422,25 @@ fn main() -> ExitCode {
     };
     result.unwrap_or_else(|e| {
         eprintln!("error: {e:#}");
+        if let Some(hint) = atari_hint(&e) {
+            eprintln!("{hint}");
+        }
         ExitCode::FAILURE
     })
+}
+
+/// For an unknown `ALE/…` environment in a build without the `atari` feature: how to get the
+/// Atari games.
+fn atari_hint(error: &anyhow::Error) -> Option<&'static str> {
+    let unknown_game = error.chain().any(|cause| {
+        matches!(cause.downcast_ref::<apo_envs::EnvError>(),
+            Some(apo_envs::EnvError::Unknown { name, .. })
+                if name.get(..4).is_some_and(|ns| ns.eq_ignore_ascii_case("ALE/")))
+    });
+    (unknown_game && cfg!(not(feature = "atari"))).then_some(
+        "hint: the Atari games (`ALE/<Game>-v5`) are in builds with the `atari` feature \
+         (GPL-2.0): cargo build --release -p apo-cli --features atari",
+    )
 }
 
 fn eval(
@@ -466,8 +488,8 @@ fn report(
 ) -> anyhow::Result<()> {
     use apo_cli::report;
     let runs = report::find_runs(paths)?;
-    let report = report::report(&runs, last, &mut |env| {
-        report::random_baseline(env, random_episodes, 0)
+    let report = report::report(&runs, last, &mut |env, options| {
+        report::random_baseline(env, options, random_episodes, 0)
     })?;
     print!("{}", report::markdown(&report));
     if let Some(out) = out {
@@ -1104,7 +1126,9 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
             let dir = args.out.clone().unwrap_or_else(|| {
                 PathBuf::from(format!(
                     "runs/{}-{}-s{}",
-                    config.train.env, algo, config.train.seed
+                    apo_cli::run_dir::env_label(&config.train.env),
+                    algo,
+                    config.train.seed
                 ))
             });
             if !writer {

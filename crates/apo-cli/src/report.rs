@@ -179,7 +179,8 @@ pub fn variant(name: &str, env: &str, algo: Algorithm) -> String {
         Some((head, seed)) if !seed.is_empty() && seed.bytes().all(|b| b.is_ascii_digit()) => head,
         _ => name,
     };
-    let base = env.rsplit_once("-v").map_or(env, |(b, _)| b);
+    let env = run_dir::env_label(env);
+    let base = env.rsplit_once("-v").map_or(env.as_str(), |(b, _)| b);
     for prefix in [format!("{env}-{algo}"), format!("{base}-{algo}")] {
         if let Some(rest) = without_seed.strip_prefix(&prefix) {
             return rest.trim_start_matches('-').to_string();
@@ -198,20 +199,29 @@ fn last_average(
     average_over_epochs(&values, Some(last))
 }
 
-/// The report of the runs in `runs` with the last `last` epochs; `baseline(env)` gives an
-/// environment's random baseline (an error leaves that environment's scores out).
+/// The report of the runs in `runs` with the last `last` epochs; `baseline(env, options)`
+/// gives an environment's random baseline, built as the first of its runs builds it (its
+/// action mapping and time limit; episodes seeded by the baseline), and an error leaves that
+/// environment's scores out.
 ///
 /// # Errors
 /// A run whose `config.toml` or `progress.csv` cannot be read.
 pub fn report(
     runs: &[PathBuf],
     last: usize,
-    baseline: &mut dyn FnMut(&str) -> anyhow::Result<Baseline>,
+    baseline: &mut dyn FnMut(&str, &apo_envs::MakeOptions) -> anyhow::Result<Baseline>,
 ) -> anyhow::Result<Report> {
     let mut groups: BTreeMap<(String, String, String), (Algorithm, Vec<PathBuf>)> = BTreeMap::new();
+    let mut options = BTreeMap::new();
     for dir in runs {
         let config = RunConfig::load(&dir.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", dir.display()))?;
+        options
+            .entry(config.train.env.clone())
+            .or_insert(apo_envs::MakeOptions {
+                fixed_reset_seed: None,
+                ..config.train.make_options()
+            });
         let algo = config.train.algo.algorithm();
         let name = dir
             .file_name()
@@ -261,12 +271,8 @@ pub fn report(
         });
     }
     let mut baselines = BTreeMap::new();
-    let envs: Vec<String> = reports.iter().map(|g| g.env.clone()).collect();
-    for env in envs {
-        if baselines.contains_key(&env) {
-            continue;
-        }
-        match baseline(&env) {
+    for (env, options) in options {
+        match baseline(&env, &options) {
             Ok(b) => {
                 baselines.insert(env, b);
             }
@@ -306,14 +312,20 @@ pub fn report(
     })
 }
 
-/// A uniformly random policy's returns on `env` over `episodes` episodes seeded from `seed`
-/// (actions uniform in the policy's `[-1, 1]` box, or uniform over the discrete actions).
+/// A uniformly random policy's returns on `env` built with `options` over `episodes` episodes
+/// seeded from `seed` (actions uniform in the action box, or uniform over the discrete
+/// actions).
 ///
 /// # Errors
 /// When the environment cannot be made.
-pub fn random_baseline(env: &str, episodes: usize, seed: u64) -> anyhow::Result<Baseline> {
+pub fn random_baseline(
+    env: &str,
+    options: &apo_envs::MakeOptions,
+    episodes: usize,
+    seed: u64,
+) -> anyhow::Result<Baseline> {
     use apo_envs::{Action, Space};
-    let mut e = apo_envs::make(env)?;
+    let mut e = apo_envs::make_with(env, options)?;
     let mut obs = vec![0.0f32; e.observation_space().flat_dim()];
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let space = e.action_space().clone();
@@ -327,10 +339,17 @@ pub fn random_baseline(env: &str, episodes: usize, seed: u64) -> anyhow::Result<
                 Space::Discrete { n } => {
                     e.step(Action::Discrete(rng.random_range(0..*n)), &mut obs)
                 }
-                Space::Box { .. } => {
-                    action
-                        .iter_mut()
-                        .for_each(|a| *a = rng.random_range(-1.0..=1.0));
+                Space::Box { low, high, .. } => {
+                    // in the box the policy acts in: [-1, 1] when rescaled, else the
+                    // environment's own bounds ([-1, 1] where those are not finite)
+                    for ((a, &lo), &hi) in action.iter_mut().zip(low).zip(high) {
+                        let (lo, hi) = if lo.is_finite() && hi.is_finite() && lo <= hi {
+                            (lo, hi)
+                        } else {
+                            (-1.0, 1.0)
+                        };
+                        *a = rng.random_range(lo..=hi);
+                    }
                     e.step(Action::Continuous(&action), &mut obs)
                 }
             };
@@ -554,7 +573,7 @@ pub fn write(
         if groups.is_empty() {
             continue;
         }
-        let path = out.join(format!("curves-{}.{image}", env.replace(['/', '\\'], "_")));
+        let path = out.join(format!("curves-{}.{image}", run_dir::env_label(env)));
         crate::plot::plot_seed_groups(
             &groups,
             &path,

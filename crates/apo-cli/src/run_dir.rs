@@ -14,6 +14,12 @@ use anyhow::{bail, Context};
 
 use crate::config::RunConfig;
 
+/// `env` as a part of a file name: the path separators of a namespaced name become `_`
+/// (`ALE/Pong-v5` → `ALE_Pong-v5`), so that a run of it is one directory, not two.
+pub fn env_label(env: &str) -> String {
+    env.replace(['/', '\\'], "_")
+}
+
 /// The run's configuration.
 pub const CONFIG: &str = "config.toml";
 /// One row per epoch.

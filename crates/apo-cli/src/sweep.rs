@@ -186,7 +186,7 @@ pub fn expand(spec: &SweepSpec) -> anyhow::Result<Vec<SweepRun>> {
             }
             for cell in cells {
                 for &seed in &spec.seeds {
-                    let mut name = format!("{env_name}-{algo}");
+                    let mut name = format!("{}-{algo}", run_dir::env_label(&env_name));
                     for ((_, v), axis) in cell.iter().zip(&axes) {
                         name.push_str(&format!("-{}={v}", axis.short()));
                     }

@@ -40,6 +40,31 @@ fn wrap_for_policy(env: Box<dyn Env>) -> Result<Box<dyn Env>, EnvError> {
     })
 }
 
+/// How [`crate::registry::make_with`] builds an environment, beyond [`crate::registry::make`]'s defaults.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MakeOptions {
+    /// Wrap box action spaces in [`RescaleAction`](crate::RescaleAction) (default). Without
+    /// it the policy's actions reach the environment as they are: in its own bounds,
+    /// unclipped (a MuJoCo task clamps the controls, but its control cost sees the raw action).
+    pub rescale_actions: bool,
+    /// Reset every episode with this seed ([`FixedReset`](crate::FixedReset)), so that all
+    /// episodes start from the same state; `None` (default): seeds as the caller passes them.
+    pub fixed_reset_seed: Option<u64>,
+    /// Truncate episodes after this many steps instead of the environment's registered limit
+    /// (`None`, default: the registered one).
+    pub max_episode_steps: Option<usize>,
+}
+
+impl Default for MakeOptions {
+    fn default() -> Self {
+        Self {
+            rescale_actions: true,
+            fixed_reset_seed: None,
+            max_episode_steps: None,
+        }
+    }
+}
+
 /// One registered environment.
 pub(crate) struct Member {
     pub(crate) name: String,
@@ -63,29 +88,45 @@ impl fmt::Debug for Member {
 
 impl Member {
     /// Builds the environment as the policy acts on it (no time limit) and remembers its sizes.
+    ///
+    /// # Errors
+    /// The builder's; [`EnvError::Init`] if the family stated sizes the environment does not
+    /// have.
     fn build_for_policy(&self) -> Result<(Box<dyn Env>, &Spaces), EnvError> {
         let env = wrap_for_policy((self.build)()?)?;
-        let spaces = self.spaces.get_or_init(|| Spaces::of(&*env));
+        let built = Spaces::of(&*env);
+        let spaces = self.spaces.get_or_init(|| built.clone());
+        if *spaces != built {
+            return Err(EnvError::Init {
+                name: self.name.clone(),
+                reason: format!(
+                    "its family states {} observations and actions {:?}, but the environment \
+                     has {} and {:?}",
+                    spaces.observation_dim,
+                    spaces.action_space,
+                    built.observation_dim,
+                    built.action_space
+                ),
+            });
+        }
         Ok((env, spaces))
     }
 
-    /// The environment with [`RescaleAction`] (box actions, if `rescale_actions`),
-    /// [`FixedReset`] (with `fixed_reset_seed`) and [`TimeLimit`].
-    pub(crate) fn make(
-        &self,
-        rescale_actions: bool,
-        fixed_reset_seed: Option<u64>,
-    ) -> Result<Box<dyn Env>, EnvError> {
-        let env = if rescale_actions {
+    /// The environment with [`RescaleAction`] (box actions, if `options.rescale_actions`),
+    /// [`FixedReset`] (with `options.fixed_reset_seed`) and [`TimeLimit`] (after
+    /// `options.max_episode_steps`, else the member's own limit).
+    pub(crate) fn make(&self, options: &MakeOptions) -> Result<Box<dyn Env>, EnvError> {
+        let env = if options.rescale_actions {
             self.build_for_policy()?.0
         } else {
             (self.build)()?
         };
-        let env: Box<dyn Env> = match fixed_reset_seed {
+        let env: Box<dyn Env> = match options.fixed_reset_seed {
             Some(seed) => Box::new(FixedReset::new(env, seed)),
             None => env,
         };
-        Ok(Box::new(TimeLimit::new(env, self.max_episode_steps)))
+        let limit = options.max_episode_steps.unwrap_or(self.max_episode_steps);
+        Ok(Box::new(TimeLimit::new(env, limit)))
     }
 
     /// The sizes: stated by the family, remembered, or found by building the environment once.
@@ -148,6 +189,28 @@ impl Family {
         F: Fn() -> Result<Box<dyn Env>, EnvError> + Send + Sync + 'static,
     {
         self.push(name.into(), max_episode_steps, Box::new(build), None)
+    }
+
+    /// [`Family::add`] for an environment with `observation_dim`-long observations and
+    /// `Discrete { n: actions }` actions, stated here so that listing it or asking for its spec
+    /// needs no build (a game whose ROM is missing is still listed). Building it checks the
+    /// statement: a mismatch is an [`EnvError::Init`].
+    pub fn add_discrete<F>(
+        &mut self,
+        name: impl Into<String>,
+        max_episode_steps: usize,
+        observation_dim: usize,
+        actions: usize,
+        build: F,
+    ) -> &mut Self
+    where
+        F: Fn() -> Result<Box<dyn Env>, EnvError> + Send + Sync + 'static,
+    {
+        let spaces = Spaces {
+            observation_dim,
+            action_space: Space::Discrete { n: actions },
+        };
+        self.add_sized(name.into(), max_episode_steps, Box::new(build), spaces)
     }
 
     /// [`Family::add`] for an environment whose sizes its type states, so that listing it

@@ -112,7 +112,7 @@ use crate::family::Member;
 use crate::space::Space;
 use crate::vector::VecEnv;
 
-pub use crate::family::Family;
+pub use crate::family::{Family, MakeOptions};
 
 /// The description of a registered environment, as built by [`make`].
 #[derive(Debug, Clone, PartialEq)]
@@ -230,36 +230,15 @@ pub fn make(name: &str) -> Result<Box<dyn Env>, EnvError> {
     make_with(name, &MakeOptions::default())
 }
 
-/// How [`make_with`] builds an environment, beyond [`make`]'s defaults.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct MakeOptions {
-    /// Wrap box action spaces in [`RescaleAction`](crate::RescaleAction) (default). Without
-    /// it the policy's actions reach the environment as they are: in its own bounds,
-    /// unclipped (a MuJoCo task clamps the controls, but its control cost sees the raw action).
-    pub rescale_actions: bool,
-    /// Reset every episode with this seed ([`FixedReset`](crate::FixedReset)), so that all
-    /// episodes start from the same state; `None` (default): seeds as the caller passes them.
-    pub fixed_reset_seed: Option<u64>,
-}
-
-impl Default for MakeOptions {
-    fn default() -> Self {
-        Self {
-            rescale_actions: true,
-            fixed_reset_seed: None,
-        }
-    }
-}
-
 /// [`make`] with `options`: the bare environment, inside [`RescaleAction`](crate::RescaleAction)
 /// if its actions are a box and `options.rescale_actions`, inside
 /// [`FixedReset`](crate::FixedReset) if `options.fixed_reset_seed` is set, inside
-/// [`TimeLimit`](crate::TimeLimit).
+/// [`TimeLimit`](crate::TimeLimit) (`options.max_episode_steps`, else the registered limit).
 ///
 /// # Errors
 /// Those of [`make`].
 pub fn make_with(name: &str, options: &MakeOptions) -> Result<Box<dyn Env>, EnvError> {
-    lookup(name)?.make(options.rescale_actions, options.fixed_reset_seed)
+    lookup(name)?.make(options)
 }
 
 // `VecEnv::make` is defined here, beside `make`, so that `vector` does not depend on the
@@ -337,10 +316,15 @@ fn suggestions(name: &str, registry: &[Arc<Member>]) -> Vec<String> {
         .map(|m| {
             let full = m.name.to_lowercase();
             let base = unversioned(&full);
+            // without a namespace: `ALE/Pong-v5` is also compared as `pong`
+            let short = base.rsplit_once('/').map_or(base, |(_, short)| short);
             let score = if !query.is_empty() && full.contains(&query) {
                 1.0
             } else {
-                strsim::jaro_winkler(&query, &full).max(strsim::jaro_winkler(&query, base))
+                [full.as_str(), base, short]
+                    .into_iter()
+                    .map(|candidate| strsim::jaro_winkler(&query, candidate))
+                    .fold(0.0, f64::max)
             };
             (score, m.name.as_str())
         })

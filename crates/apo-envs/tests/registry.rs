@@ -486,7 +486,7 @@ fn make_with_raw_actions_and_a_fixed_reset_seed() {
     // raw actions: Pendulum's own box [-2, 2], and an action of 2 is a torque of 2
     let raw = MakeOptions {
         rescale_actions: false,
-        fixed_reset_seed: None,
+        ..MakeOptions::default()
     };
     let mut env = registry::make_with("Pendulum-v1", &raw).expect("pendulum");
     assert_eq!(env.action_space(), &Space::uniform_box(1, -2.0, 2.0));
@@ -518,8 +518,8 @@ fn make_with_raw_actions_and_a_fixed_reset_seed() {
 
     // a fixed reset seed: every reset, seeded or not, starts from the same state
     let fixed = MakeOptions {
-        rescale_actions: true,
         fixed_reset_seed: Some(11),
+        ..MakeOptions::default()
     };
     let mut env = registry::make_with("Pendulum-v1", &fixed).expect("pendulum");
     let (mut first, mut again, mut other) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3]);
@@ -533,4 +533,67 @@ fn make_with_raw_actions_and_a_fixed_reset_seed() {
     assert_eq!(first, other, "the fixed seed is the seed of every reset");
     plain.reset(None, &mut other);
     assert_ne!(first, other, "without it, the stream continues");
+}
+
+#[test]
+fn make_with_another_time_limit() {
+    use apo_envs::MakeOptions;
+    let short = MakeOptions {
+        max_episode_steps: Some(7),
+        ..MakeOptions::default()
+    };
+    let mut env = registry::make_with("Pendulum-v1", &short).expect("pendulum");
+    let mut obs = [0.0f32; 3];
+    env.reset(Some(0), &mut obs);
+    for step in 1..=7 {
+        let out = env.step(Action::Continuous(&[0.0]), &mut obs);
+        assert!(!out.terminated, "Pendulum never terminates");
+        assert_eq!(out.truncated, step == 7, "cut after 7 steps, not {step}");
+    }
+    // the registered limit when not overridden
+    assert_eq!(
+        registry::spec("Pendulum-v1")
+            .expect("spec")
+            .max_episode_steps,
+        200
+    );
+}
+
+#[test]
+fn stated_discrete_sizes_are_listed_without_a_build_and_checked_at_build() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+
+    use apo_envs::classic::CartPole;
+    let builds = Arc::new(AtomicUsize::new(0));
+    let mut family = Family::new("stated-corridors");
+    let counted = Arc::clone(&builds);
+    family.add_discrete("StatedCartPole-v0", 10, 4, 2, move || {
+        counted.fetch_add(1, Ordering::SeqCst);
+        Ok(Box::new(CartPole::new()))
+    });
+    // states 3 actions, but CartPole has 2
+    family.add_discrete("MisstatedCartPole-v0", 10, 4, 3, || {
+        Ok(Box::new(CartPole::new()))
+    });
+    registry::register(family).expect("new names");
+    let spec = registry::spec("StatedCartPole-v0").expect("stated");
+    assert_eq!(
+        (spec.observation_dim, spec.action_space),
+        (4, Space::Discrete { n: 2 })
+    );
+    assert!(registry::list()
+        .iter()
+        .any(|s| s.name == "MisstatedCartPole-v0"));
+    assert_eq!(builds.load(Ordering::SeqCst), 0, "listing built nothing");
+    registry::make("StatedCartPole-v0").expect("sizes as stated");
+    assert_eq!(builds.load(Ordering::SeqCst), 1);
+    let err = registry::make("MisstatedCartPole-v0")
+        .err()
+        .expect("a misstated family is caught")
+        .to_string();
+    assert!(
+        err.contains("MisstatedCartPole-v0") && err.contains("states"),
+        "{err}"
+    );
 }

@@ -79,6 +79,10 @@ pub struct TrainConfig {
     /// How episodes are seeded.
     #[serde(default)]
     pub episode_reset: EpisodeReset,
+    /// Truncate episodes after this many steps (the paper's maximum trajectory length L);
+    /// 0 (default): the environment's registered limit.
+    #[serde(default)]
+    pub max_episode_steps: usize,
     /// The algorithm's hyperparameters.
     pub algo: AlgoConfig,
 }
@@ -101,6 +105,7 @@ impl TrainConfig {
             bootstrap_time_limit: true,
             actions: ActionMapping::Rescale,
             episode_reset: EpisodeReset::Epoch,
+            max_episode_steps: 0,
             algo: AlgoConfig::paper_defaults(algo),
         }
     }
@@ -192,6 +197,7 @@ impl TrainConfig {
         apo_envs::MakeOptions {
             rescale_actions: self.actions == ActionMapping::Rescale,
             fixed_reset_seed: (self.episode_reset == EpisodeReset::RunSeed).then_some(self.seed),
+            max_episode_steps: (self.max_episode_steps > 0).then_some(self.max_episode_steps),
         }
     }
 

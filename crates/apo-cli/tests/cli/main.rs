@@ -246,6 +246,14 @@ fn bad_input_gets_clear_errors() {
         err.contains("unknown environment `CartPol-v1`") && err.contains("CartPole-v1"),
         "{err}"
     );
+    // an Atari game in a build without the `atari` feature: how to get one
+    if !cfg!(feature = "atari") {
+        let err = fails(&["train", "--algo", "ppo", "--env", "ALE/Pong-v5", "--out", o]);
+        assert!(
+            err.contains("unknown environment `ALE/Pong-v5`") && err.contains("--features atari"),
+            "{err}"
+        );
+    }
     let err = fails(&["train", "--algo", "ppp", "--env", "CartPole-v1", "--out", o]);
     assert!(
         err.contains("unknown algorithm `ppp`") && err.contains("ppo"),

@@ -74,8 +74,9 @@ fn report_numbers_by_hand() {
     );
     let runs = report::find_runs(&[t.to_path_buf()]).expect("runs");
     assert_eq!(runs.len(), 5);
-    let report = report::report(&runs, 2, &mut |env| {
+    let report = report::report(&runs, 2, &mut |env, options| {
         assert_eq!(env, "CartPole-v1");
+        assert_eq!(options, &apo_envs::MakeOptions::default());
         Ok(Baseline {
             mean: 10.0,
             worst: 5.0,
@@ -153,6 +154,12 @@ fn variants_strip_environment_algorithm_and_seed() {
     );
     assert_eq!(v("Hopper-trpo-paper-s1", Algorithm::Trpo), "paper");
     assert_eq!(v("my-run", Algorithm::Trpo), "my-run");
+    // a namespaced environment's runs are named with `_` for the `/`
+    assert_eq!(
+        report::variant("ALE_Pong-v5-ppo-s1", "ALE/Pong-v5", Algorithm::Ppo),
+        ""
+    );
+    assert_eq!(apo_cli::run_dir::env_label("ALE/Pong-v5"), "ALE_Pong-v5");
 }
 
 #[test]
