@@ -164,8 +164,8 @@ pub enum Preset {
     /// The paper's published code where it differs from our defaults (docs/algorithms.md,
     /// "The paper preset"): conjugate gradient of 100 iterations without damping, stopping
     /// at a residual norm of 1e-8, and `1e-8` added to `xᵀFx`; raw Gaussian actions; A2C's
-    /// single policy step; on the Gym MuJoCo tasks, no bootstrap at the time limit and every
-    /// episode reset with the run's seed.
+    /// single policy step; on the Gym MuJoCo and the hand tasks, no bootstrap at the time limit
+    /// and every episode reset with the run's seed.
     Paper,
 }
 
@@ -177,8 +177,10 @@ impl Preset {
         use toml::Value::{Boolean, Float, Integer, String as Text};
         match self {
             Preset::Paper => {
-                let gym_mujoco =
-                    apo_envs::registry::spec(env).is_ok_and(|spec| spec.family == "mujoco");
+                // The Gym MuJoCo tasks and Gymnasium-Robotics' hands: the reference ran both
+                // through the same Gymnasium loop.
+                let gymnasium = apo_envs::registry::spec(env)
+                    .is_ok_and(|spec| matches!(&*spec.family, "mujoco" | "hand"));
                 let mut settings = vec![
                     ("algo.trust_region.cg_iters", Integer(100)),
                     ("algo.trust_region.cg_damping", Float(0.0)),
@@ -190,7 +192,7 @@ impl Preset {
                 if algo == Algorithm::A2c {
                     settings.push(("algo.policy_update.iters", Integer(1)));
                 }
-                if gym_mujoco {
+                if gymnasium {
                     settings.push(("bootstrap_time_limit", Boolean(false)));
                     settings.push(("episode_reset", Text("run_seed".into())));
                 }
@@ -351,7 +353,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("init_log_std", "initial state-independent log standard deviation of Gaussian policies; [-20, 2]"),
     ("bootstrap_time_limit", "bootstrap episodes cut by the time limit from V(final observation); false: from 0, as the paper's code on Gym MuJoCo; true/false"),
     ("actions", "how Gaussian actions reach the environment: \"rescale\" (policy acts in [-1, 1], mapped to the box and clipped) or \"raw\" (unscaled, unclipped, as the paper's code)"),
-    ("episode_reset", "how episodes start: \"epoch\" (each epoch reseeds from the run's seed, later episodes continue the stream) or \"run_seed\" (every episode reset with the run's seed, as the paper's code on Gym MuJoCo)"),
+    ("episode_reset", "how episodes start: \"epoch\" (each epoch reseeds from the run's seed, later episodes continue the stream) or \"run_seed\" (every episode reset with the run's seed, as the paper's code on Gym MuJoCo and the hands)"),
     ("max_episode_steps", "truncate episodes after this many steps (the paper's maximum trajectory length, 1000 on every suite); 0 = the environment's registered limit (`apo list`)"),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];
@@ -849,7 +851,7 @@ mod tests {
     #[test]
     fn shipped_configs_are_the_paper_defaults() {
         let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
-        for (dir, &algo) in [configs.clone(), configs.join("guard")]
+        for (dir, &algo) in [configs.clone(), configs.join("guard"), configs.join("hand")]
             .iter()
             .flat_map(|dir| Algorithm::ALL.iter().map(move |a| (dir, a)))
         {

@@ -139,6 +139,7 @@ fn members() -> &'static RwLock<Vec<Arc<Member>>> {
             crate::classic::family(),
             crate::mujoco::family(),
             crate::mujoco::guard::family(),
+            crate::mujoco::hand::family(),
         ];
         RwLock::new(
             built_in

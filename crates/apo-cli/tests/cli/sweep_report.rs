@@ -312,6 +312,22 @@ fn the_paper_preset_sets_the_reference_choices() {
     ] {
         assert!(trpo.lines().any(|l| l == line), "{line} in\n{trpo}");
     }
+    // the hands ran through the same Gymnasium loop: the same time-limit and reset choices
+    let hand = ok(&[
+        "config",
+        "--algo",
+        "papo",
+        "--env",
+        "HandReachDense",
+        "--preset",
+        "paper",
+    ]);
+    for line in [
+        "bootstrap_time_limit = false",
+        "episode_reset = \"run_seed\"",
+    ] {
+        assert!(hand.lines().any(|l| l == line), "{line} in\n{hand}");
+    }
     // not a Gym MuJoCo task: no time-limit or reset change; a proximal method: no CG
     let ppo = ok(&[
         "config", "--algo", "ppo", "--env", "Pendulum", "--preset", "paper",

@@ -338,7 +338,10 @@ pub(crate) fn transition(outcome: Option<(f64, bool)>, obs: &mut [f32]) -> Trans
 static MODELS: Mutex<Vec<(&'static str, Arc<Model>)>> = Mutex::new(Vec::new());
 
 /// The model of task `name` compiled from `mjcf`, shared between all its environments.
-fn shared_model(name: &'static str, mjcf: &'static str) -> Result<Arc<Model>, MujocoError> {
+pub(crate) fn shared_model(
+    name: &'static str,
+    mjcf: &'static str,
+) -> Result<Arc<Model>, MujocoError> {
     let mut models = MODELS
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner());

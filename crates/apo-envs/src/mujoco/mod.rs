@@ -10,6 +10,8 @@
 //!   Their MJCF models are this project's own, embedded. Another crate registers its own
 //!   tasks with [`Family::add_task`], whose sizes are the task's constants.
 //! - [`guard`]: the GUARD suites (`Goal_Point` … `Chase_Walker`), in the family `guard`.
+//! - [`hand`]: the Shadow Dexterous Hand tasks of Gymnasium-Robotics (`HandReachDense-v3`,
+//!   `HandManipulateBlockDense-v1`, `HandManipulateEggDense-v1`), in the family `hand`.
 //! - [`steps_per_second`], [`vector_steps_per_second`]: the `apo bench env` measurements.
 //!
 //! See `docs/mujoco.md` for the design, the Send/Sync story and the benchmarks.
@@ -26,6 +28,7 @@ mod error;
 )]
 mod ffi;
 pub mod guard;
+pub mod hand;
 mod library;
 mod model;
 pub mod tasks;
