@@ -3,6 +3,8 @@
 #
 #   bash scripts/setup.sh              # install, build, train APO on Pendulum-v1, evaluate, plot
 #   bash scripts/setup.sh --deps-only  # install the Debian packages only (what CI does)
+#   bash scripts/setup.sh --mujoco3    # also fetch MuJoCo 3.17 into .cache/ for --features mujoco3
+#                                      # (CI: --deps-only --mujoco3)
 #
 # Installs (as root, or through sudo) the Debian packages the project needs:
 #   build-essential pkg-config   C toolchain for crates that build C
@@ -37,7 +39,16 @@ fi
 # the ALE's source archive and the Atari ROMs, from PyPI (apo-atari; checksums checked)
 python3 scripts/atari_assets.py
 
-if [ "${1:-}" = "--deps-only" ]; then
+deps_only=false
+for arg in "$@"; do
+  case "$arg" in
+    --deps-only) deps_only=true ;;
+    # MuJoCo 3.17's library from the mujoco wheel on PyPI, for `--features mujoco3`
+    --mujoco3) python3 scripts/mujoco3_assets.py ;;
+    *) echo "error: unknown option $arg (options: --deps-only, --mujoco3)" >&2; exit 2 ;;
+  esac
+done
+if $deps_only; then
   exit 0
 fi
 

@@ -1,19 +1,30 @@
 #!/usr/bin/env bash
 # The project's tests: formatting, lints (warnings are errors), every crate's tests, and the
 # examples of the training library run for a few hundred steps.
-# Needs rustfmt and clippy (rustup's default profile has both) and the packages of
-# `scripts/setup.sh --deps-only` (Open MPI and libclang included).
+# Needs rustfmt and clippy (rustup's default profile has both), the packages of
+# `scripts/setup.sh --deps-only` (Open MPI and libclang included) and MuJoCo 3.17 from
+# `scripts/setup.sh --mujoco3`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# MuJoCo 3.17 (`scripts/setup.sh --mujoco3`): every crate is tested with the `mujoco3` physics
+# built in, so the MuJoCo 2.2.2 tests also run beside MuJoCo 3 in one process.
+mujoco3="$PWD/.cache/mujoco-3.17.0/lib"
+if [ ! -e "$mujoco3/libmujoco.so" ]; then
+  echo "error: $mujoco3/libmujoco.so is missing: run 'bash scripts/setup.sh --deps-only --mujoco3'" >&2
+  exit 1
+fi
+export MUJOCO_DYNAMIC_LINK_DIR="$mujoco3"
+export LD_LIBRARY_PATH="$mujoco3${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+features=apo-envs/mujoco3,apo-cli/mujoco3
 cargo fmt --all -- --check
-cargo clippy --workspace --all-targets -- -D warnings
-cargo test --workspace
+cargo clippy --workspace --all-targets --features "$features" -- -D warnings
+cargo test --workspace --features "$features"
 # apo-cli's opt-in features, built once together: data-parallel training under Open MPI's
 # mpirun (`mpi`: the binary and its `mpi_update` example, then the tests that launch them) and
 # the Atari games (`atari`: listed, trained, resumed, evaluated from the command line)
-cargo clippy -p apo-cli --features mpi,atari --all-targets -- -D warnings
-cargo build -p apo-cli --features mpi,atari --profile test --bin apo --example mpi_update
-cargo test -p apo-cli --features mpi,atari --test mpi --test atari
+cargo clippy -p apo-cli --features mpi,atari,mujoco3 --all-targets -- -D warnings
+cargo build -p apo-cli --features mpi,atari,mujoco3 --profile test --bin apo --example mpi_update
+cargo test -p apo-cli --features mpi,atari,mujoco3 --test mpi --test atari
 # the training-library examples, a few hundred environment steps each (built by `cargo test`)
-cargo run --profile test -q -p apo-train --example train_hopper -- 2 200
-cargo run --profile test -q -p apo-train --example custom_policy -- 5
+cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example train_hopper -- 2 200
+cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example custom_policy -- 5

@@ -355,6 +355,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("actions", "how Gaussian actions reach the environment: \"rescale\" (policy acts in [-1, 1], mapped to the box and clipped) or \"raw\" (unscaled, unclipped, as the paper's code)"),
     ("episode_reset", "how episodes start: \"epoch\" (each epoch reseeds from the run's seed, later episodes continue the stream) or \"run_seed\" (every episode reset with the run's seed, as the paper's code on Gym MuJoCo and the hands)"),
     ("max_episode_steps", "truncate episodes after this many steps (the paper's maximum trajectory length, 1000 on every suite); 0 = the environment's registered limit (`apo list`)"),
+    ("physics", "the physics of MuJoCo environments: \"mujoco2\" (MuJoCo 2.2.2, Debian's libmujoco-dev) or \"mujoco3\" (MuJoCo 3.17 through mujoco-rs; a build with --features mujoco3, docs/mujoco.md)"),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];
 

@@ -13,6 +13,7 @@ use apo_cli::progress::ProgressRow;
 use apo_cli::run_dir::{self, NewRunDir, RunLock};
 use apo_cli::trainer::{self, Observer, TrainEnd};
 use apo_core::Algorithm;
+use apo_envs::mujoco::Physics;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -260,6 +261,9 @@ enum BenchCommand {
         /// Threads that step the vector (0: the cores available).
         #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
         threads: usize,
+        /// Physics of MuJoCo environments: mujoco2, or mujoco3 (builds with the `mujoco3` feature).
+        #[arg(long, value_parser = parse_physics, default_value = "mujoco2")]
+        physics: Physics,
     },
     /// Microseconds per rollout policy call (host MLP, (64, 64)).
     Policy {
@@ -289,6 +293,10 @@ struct TrainArgs {
     /// Backend of the updates [config: backend; default cpu].
     #[arg(long, value_enum)]
     backend: Option<BackendKind>,
+    /// Physics of MuJoCo environments, mujoco2 or mujoco3 (builds with the `mujoco3` feature)
+    /// [config: physics; default mujoco2].
+    #[arg(long, value_parser = parse_physics)]
+    physics: Option<Physics>,
     /// TOML config file (keys as in a run's config.toml or `apo config`; defaults fill the rest).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -339,6 +347,12 @@ fn algorithm_names() -> String {
         .map(|a| a.name())
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// `--physics`: a MuJoCo physics by name (`mujoco2`, `mujoco3`).
+fn parse_physics(name: &str) -> Result<Physics, String> {
+    name.parse()
+        .map_err(|e: apo_envs::mujoco::MujocoError| e.to_string())
 }
 
 fn parse_algo(s: &str) -> Result<Algorithm, String> {
@@ -777,17 +791,22 @@ fn bench(command: BenchCommand) -> anyhow::Result<()> {
             steps,
             num_envs,
             threads,
+            physics,
         } => {
+            let options = apo_envs::MakeOptions {
+                physics: Some(physics),
+                ..Default::default()
+            };
             let rate = if num_envs == 1 {
-                let mut e = apo_envs::make(&env)?;
+                let mut e = apo_envs::make_with(&env, &options)?;
                 apo_envs::mujoco::steps_per_second(e.as_mut(), steps as usize, 0)
             } else {
-                let mut envs =
-                    apo_envs::vector::VecEnv::make(&env, num_envs)?.with_threads(threads)?;
+                let mut envs = apo_envs::vector::VecEnv::make_with(&env, num_envs, &options)?
+                    .with_threads(threads)?;
                 println!("threads={}", envs.threads());
                 apo_envs::mujoco::vector_steps_per_second(&mut envs, steps as usize, 0)
             };
-            println!("env={env} steps={steps} num_envs={num_envs}");
+            println!("env={env} steps={steps} num_envs={num_envs} physics={physics}");
             println!("steps_per_sec={rate:.1}");
         }
         BenchCommand::Policy {
@@ -1108,6 +1127,7 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
                         args.checkpoint_every.map(|v| v.to_string()),
                     ),
                     flag("backend", args.backend.map(|b| format!("\"{b}\""))),
+                    flag("physics", args.physics.map(|p| format!("\"{p}\""))),
                 ]
                 .into_iter()
                 .flatten(),

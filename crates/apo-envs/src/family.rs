@@ -53,6 +53,10 @@ pub struct MakeOptions {
     /// Truncate episodes after this many steps instead of the environment's registered limit
     /// (`None`, default: the registered one).
     pub max_episode_steps: Option<usize>,
+    /// The physics the MuJoCo environments are built on (`None`, default: the process default,
+    /// [`default_physics`](crate::mujoco::default_physics), MuJoCo 2.2.2 unless changed).
+    /// Other environments ignore it.
+    pub physics: Option<crate::mujoco::Physics>,
 }
 
 impl Default for MakeOptions {
@@ -61,6 +65,7 @@ impl Default for MakeOptions {
             rescale_actions: true,
             fixed_reset_seed: None,
             max_episode_steps: None,
+            physics: None,
         }
     }
 }

@@ -239,7 +239,11 @@ pub fn make(name: &str) -> Result<Box<dyn Env>, EnvError> {
 /// # Errors
 /// Those of [`make`].
 pub fn make_with(name: &str, options: &MakeOptions) -> Result<Box<dyn Env>, EnvError> {
-    lookup(name)?.make(options)
+    let member = lookup(name)?;
+    match options.physics {
+        Some(physics) => crate::mujoco::with_physics(physics, || member.make(options)),
+        None => member.make(options),
+    }
 }
 
 // `VecEnv::make` is defined here, beside `make`, so that `vector` does not depend on the

@@ -83,6 +83,10 @@ pub struct TrainConfig {
     /// 0 (default): the environment's registered limit.
     #[serde(default)]
     pub max_episode_steps: usize,
+    /// The physics of MuJoCo environments: MuJoCo 2.2.2 (default) or 3.17 (builds with the
+    /// `mujoco3` feature).
+    #[serde(default)]
+    pub physics: apo_envs::mujoco::Physics,
     /// The algorithm's hyperparameters.
     pub algo: AlgoConfig,
 }
@@ -106,6 +110,7 @@ impl TrainConfig {
             actions: ActionMapping::Rescale,
             episode_reset: EpisodeReset::Epoch,
             max_episode_steps: 0,
+            physics: apo_envs::mujoco::Physics::Mujoco2,
             algo: AlgoConfig::paper_defaults(algo),
         }
     }
@@ -198,6 +203,7 @@ impl TrainConfig {
             rescale_actions: self.actions == ActionMapping::Rescale,
             fixed_reset_seed: (self.episode_reset == EpisodeReset::RunSeed).then_some(self.seed),
             max_episode_steps: (self.max_episode_steps > 0).then_some(self.max_episode_steps),
+            physics: Some(self.physics),
         }
     }
 

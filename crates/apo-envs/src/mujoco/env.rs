@@ -9,6 +9,7 @@ use rand_distr::StandardNormal;
 
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
+use super::physics::{default_physics, Physics};
 use crate::env::{Action, Env, StepInfo, Transition};
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
@@ -334,21 +335,26 @@ pub(crate) fn transition(outcome: Option<(f64, bool)>, obs: &mut [f32]) -> Trans
     }
 }
 
-/// The compiled models of the embedded tasks, by task name: each is compiled once.
-static MODELS: Mutex<Vec<(&'static str, Arc<Model>)>> = Mutex::new(Vec::new());
+/// The compiled models of the embedded tasks, by task name and physics: each is compiled once.
+static MODELS: Mutex<Vec<(ModelKey, Arc<Model>)>> = Mutex::new(Vec::new());
 
-/// The model of task `name` compiled from `mjcf`, shared between all its environments.
+/// A compiled model's task name and physics.
+type ModelKey = (&'static str, Physics);
+
+/// The model of task `name` compiled from `mjcf` with the default physics
+/// ([`super::default_physics`]), shared between all its environments.
 pub(crate) fn shared_model(
     name: &'static str,
     mjcf: &'static str,
 ) -> Result<Arc<Model>, MujocoError> {
+    let physics = default_physics();
     let mut models = MODELS
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner());
-    if let Some((_, model)) = models.iter().find(|(n, _)| *n == name) {
+    if let Some((_, model)) = models.iter().find(|(key, _)| *key == (name, physics)) {
         return Ok(Arc::clone(model));
     }
-    let model = Arc::new(Model::from_xml_str(mjcf)?);
-    models.push((name, Arc::clone(&model)));
+    let model = Arc::new(Model::from_xml_str_with(mjcf, physics)?);
+    models.push(((name, physics), Arc::clone(&model)));
     Ok(model)
 }

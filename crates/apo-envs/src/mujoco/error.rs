@@ -27,6 +27,16 @@ pub enum MujocoError {
         /// The value of `mj_version()`.
         raw: i32,
     },
+    /// The chosen physics backend cannot be used: it is not in this build (MuJoCo 3 needs the
+    /// cargo feature `mujoco3`), or the library it is linked to is not the version its bindings
+    /// are for.
+    #[error("MuJoCo physics `{physics}` is unavailable: {reason}")]
+    Unavailable {
+        /// The backend, as [`super::Physics`] names it (`mujoco2`, `mujoco3`).
+        physics: &'static str,
+        /// Why, and what to do about it.
+        reason: String,
+    },
     /// MuJoCo's parser or compiler rejected a model; `message` is MuJoCo's own text.
     #[error("MuJoCo could not load the model {source_name}: {message}")]
     Model {

@@ -5,7 +5,7 @@
 //! link and run on machines without MuJoCo; only the MuJoCo environments then fail, with an
 //! error that says how to install it.
 
-use std::ffi::{c_char, CStr, OsString};
+use std::ffi::{c_char, CStr, OsStr, OsString};
 use std::io::Write;
 use std::sync::OnceLock;
 
@@ -51,7 +51,7 @@ fn load() -> Result<MujocoApi, MujocoError> {
     let mut reason = String::from("no candidate");
     for name in &candidates {
         // SAFETY: opening MuJoCo runs only its ELF initialisers (static tables, no I/O).
-        let library = match unsafe { libloading::Library::new(name) } {
+        let library = match unsafe { open(name) } {
             Ok(library) => library,
             Err(err) => {
                 reason = err.to_string();
@@ -61,6 +61,31 @@ fn load() -> Result<MujocoApi, MujocoError> {
         return from_library(library, &tried);
     }
     Err(MujocoError::Library { tried, reason })
+}
+
+/// Opens the MuJoCo library `name` as `libloading::Library::new` does (`RTLD_LAZY |
+/// RTLD_LOCAL`), plus, with glibc, `RTLD_DEEPBIND`: the library then binds the symbols it
+/// defines itself before those of the global scope. Debian's `libmujoco.so.2.2.2` is not linked
+/// with `-Bsymbolic`, so without this, in a binary built with the `mujoco3` feature (whose
+/// global scope holds MuJoCo 3.17, linked by mujoco-rs), 2.2.2's calls to its own exported
+/// functions and hooks (`mj_forward`, `mju_user_error`, ...) would bind to 3.17's and crash.
+/// Harmless without MuJoCo 3. See `docs/mujoco.md`, "Two MuJoCo versions in one process".
+///
+/// # Safety
+/// As for `libloading::Library::new`: the library's ELF initialisers run.
+unsafe fn open(name: &OsStr) -> Result<libloading::Library, libloading::Error> {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        use libloading::os::unix::{Library, RTLD_LAZY, RTLD_LOCAL};
+        // SAFETY: guaranteed by the caller; the flags are valid `dlopen` flags for glibc.
+        unsafe { Library::open(Some(name), RTLD_LAZY | RTLD_LOCAL | libc::RTLD_DEEPBIND) }
+            .map(libloading::Library::from)
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        // SAFETY: guaranteed by the caller.
+        unsafe { libloading::Library::new(name) }
+    }
 }
 
 fn from_library(library: libloading::Library, tried: &str) -> Result<MujocoApi, MujocoError> {

@@ -30,7 +30,11 @@ mod ffi;
 pub mod guard;
 pub mod hand;
 mod library;
+mod mj2;
+#[cfg(feature = "mujoco3")]
+mod mj3;
 mod model;
+mod physics;
 pub mod tasks;
 
 pub use bench::{steps_per_second, vector_steps_per_second};
@@ -38,6 +42,8 @@ pub use env::{MujocoEnv, ResetNoise, Sizes, StepContext, Task};
 pub use error::MujocoError;
 pub use library::{check_library, EXPECTED_VERSION, LIBRARY_ENV_VAR};
 pub use model::{ContactForce, Data, Model, ObjKind, Warning};
+pub(crate) use physics::with_physics;
+pub use physics::{default_physics, set_default_physics, Physics};
 
 use crate::env::Env;
 use crate::error::EnvError;
