@@ -13,10 +13,9 @@ import hashlib
 import io
 import os
 import pathlib
-import sys
-import tempfile
-import urllib.request
 import zipfile
+
+from pypi_fetch import fetch, write_atomic
 
 FILES = "https://files.pythonhosted.org/packages"
 SDIST = (
@@ -28,24 +27,6 @@ WHEEL = (
     "ale_py-0.12.1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl",
     "ba7429074ba6ffc1555f9a41bf00bee5d427b5080253101a8fe00412ca481033",
 )
-
-
-def fetch(url: str, sha256: str) -> bytes:
-    with urllib.request.urlopen(url, timeout=300) as response:
-        data = response.read()
-    digest = hashlib.sha256(data).hexdigest()
-    if digest != sha256:
-        sys.exit(f"error: {url} has SHA-256 {digest}, expected {sha256}")
-    return data
-
-
-def write_atomic(path: pathlib.Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, delete=False) as tmp:
-        tmp.write(data)
-        tmp.flush()
-        os.fsync(tmp.fileno())
-    os.replace(tmp.name, path)
 
 
 def main() -> None:

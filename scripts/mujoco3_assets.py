@@ -10,14 +10,13 @@ LD_LIBRARY_PATH (scripts/test.sh sets both) or the run path that apo-cli's build
 A library already present is not fetched again. Nothing else is written.
 Usage: python3 scripts/mujoco3_assets.py   (prints the folder on its last line)
 """
-import hashlib
 import io
 import os
 import pathlib
 import sys
-import tempfile
-import urllib.request
 import zipfile
+
+from pypi_fetch import fetch, write_atomic
 
 VERSION = "3.17.0"
 WHEEL = (
@@ -29,25 +28,6 @@ WHEEL = (
 LIBRARY = f"libmujoco.so.{VERSION}"
 
 
-def fetch(url: str, sha256: str) -> bytes:
-    with urllib.request.urlopen(url, timeout=300) as response:
-        data = response.read()
-    digest = hashlib.sha256(data).hexdigest()
-    if digest != sha256:
-        sys.exit(f"error: {url} has SHA-256 {digest}, expected {sha256}")
-    return data
-
-
-def write_atomic(path: pathlib.Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, delete=False) as tmp:
-        tmp.write(data)
-        tmp.flush()
-        os.fsync(tmp.fileno())
-    os.chmod(tmp.name, 0o755)
-    os.replace(tmp.name, path)
-
-
 def main() -> None:
     repo = pathlib.Path(__file__).resolve().parent.parent
     lib_dir = repo / ".cache" / f"mujoco-{VERSION}" / "lib"
@@ -57,7 +37,7 @@ def main() -> None:
             sys.exit("error: the pinned MuJoCo 3 wheel is for Linux x86-64 only")
         print(f"== fetching MuJoCo {VERSION} (the mujoco wheel from PyPI) into {lib_dir}")
         wheel = zipfile.ZipFile(io.BytesIO(fetch(*WHEEL)))
-        write_atomic(library, wheel.read(f"mujoco/{LIBRARY}"))
+        write_atomic(library, wheel.read(f"mujoco/{LIBRARY}"), 0o755)
     link = lib_dir / "libmujoco.so"
     if not link.is_symlink():
         if link.exists():

@@ -56,7 +56,7 @@ pub struct MakeOptions {
     /// The physics the MuJoCo environments are built on (`None`, default: the process default,
     /// [`default_physics`](crate::mujoco::default_physics), MuJoCo 2.2.2 unless changed).
     /// Other environments ignore it.
-    pub physics: Option<crate::mujoco::Physics>,
+    pub physics: Option<crate::mujoco::physics::Physics>,
 }
 
 impl Default for MakeOptions {

@@ -1,10 +1,11 @@
-//! The Shadow Dexterous Hand models of `assets/hand/` (issue: the dexterous-hand tasks; the
-//! models come first, the tasks later): they compile on MuJoCo 2.2.2 with Gymnasium-Robotics'
+//! The Shadow Dexterous Hand models of `assets/hand/`: they compile on MuJoCo 2.2.2 with Gymnasium-Robotics'
 //! joint and actuator order, the scenes hold the same hand, and the published Reach start pose
-//! puts the fingertips where the published initial goal says (docs/hand.md).
+//! puts the fingertips where the published initial goal says (docs/hand.md). The joint and
+//! actuator tables and the start pose are the task module's (`apo_envs::mujoco::hand`).
 
 use std::sync::Arc;
 
+use apo_envs::mujoco::hand::{ACTUATORS, JOINTS, REACH_INITIAL_QPOS as REACH_QPOS};
 use apo_envs::mujoco::{Data, Model, ObjKind};
 
 fn asset(name: &str) -> String {
@@ -15,43 +16,7 @@ fn load(name: &str) -> Arc<Model> {
     Arc::new(Model::from_xml_file(asset(name)).unwrap_or_else(|e| panic!("{name}: {e}")))
 }
 
-const JOINTS: [&str; 24] = [
-    "WRJ1", "WRJ0", "FFJ3", "FFJ2", "FFJ1", "FFJ0", "MFJ3", "MFJ2", "MFJ1", "MFJ0", "RFJ3", "RFJ2",
-    "RFJ1", "RFJ0", "LFJ4", "LFJ3", "LFJ2", "LFJ1", "LFJ0", "THJ4", "THJ3", "THJ2", "THJ1", "THJ0",
-];
-const ACTUATORS: [&str; 20] = [
-    "WRJ1", "WRJ0", "FFJ3", "FFJ2", "FFJ1", "MFJ3", "MFJ2", "MFJ1", "RFJ3", "RFJ2", "RFJ1", "LFJ4",
-    "LFJ3", "LFJ2", "LFJ1", "THJ4", "THJ3", "THJ2", "THJ1", "THJ0",
-];
 const TIPS: [&str; 5] = ["fftip", "mftip", "rftip", "lftip", "thtip"];
-
-/// Gymnasium-Robotics' `DEFAULT_INITIAL_QPOS` of HandReach, in the order of [`JOINTS`].
-const REACH_QPOS: [f64; 24] = [
-    -0.16514339750464327,
-    -0.31973286565062153,
-    0.14340512546557435,
-    0.32028208333591573,
-    0.7126053607727917,
-    0.6705281001412586,
-    0.000246444303701037,
-    0.3152655251085491,
-    0.7659800313729842,
-    0.7323156897425923,
-    0.00038520700007378114,
-    0.36743546201985233,
-    0.7119514095008576,
-    0.6699446327514138,
-    0.0525442258033891,
-    -0.13615534724474673,
-    0.39872030433433003,
-    0.7415570009679252,
-    0.704096378652974,
-    0.003673823825070126,
-    0.5506291436028695,
-    -0.014515151997119306,
-    -0.0015229223564485414,
-    -0.7894883021600622,
-];
 
 /// HandReach's documented initial fingertip positions (FF, MF, RF, LF, TH), rounded there to
 /// 0.01 (0.005 for RF's z).

@@ -20,8 +20,7 @@ use std::sync::{Arc, Mutex};
 use super::error::MujocoError;
 use super::ffi::{mjData, mjModel, mjVFS, mjtObj, mjtWarning, MujocoApi};
 use super::library::api;
-use super::model::{ContactForce, ObjKind, Warning};
-use super::physics::{Physics, PhysicsData, PhysicsModel};
+use super::physics::{ContactForce, ObjKind, Physics, PhysicsData, PhysicsModel, Warning};
 
 /// MuJoCo 2.2's object type of `kind`.
 fn obj_type(kind: ObjKind) -> mjtObj {

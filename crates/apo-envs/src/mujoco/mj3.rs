@@ -35,8 +35,7 @@ use mujoco_rs::mujoco_c;
 use mujoco_rs::wrappers::{MjData, MjModel, MjtObjBase, MjtWarning};
 
 use super::error::MujocoError;
-use super::model::{ContactForce, ObjKind, Warning};
-use super::physics::{Physics, PhysicsData, PhysicsModel};
+use super::physics::{ContactForce, ObjKind, Physics, PhysicsData, PhysicsModel, Warning};
 
 /// MuJoCo 3's object type of `kind`.
 fn obj_type(kind: ObjKind) -> MjtObjBase {

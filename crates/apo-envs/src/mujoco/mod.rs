@@ -34,7 +34,7 @@ mod mj2;
 #[cfg(feature = "mujoco3")]
 mod mj3;
 mod model;
-mod physics;
+pub(crate) mod physics;
 pub mod tasks;
 
 pub use bench::{steps_per_second, vector_steps_per_second};

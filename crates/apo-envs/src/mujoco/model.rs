@@ -20,74 +20,7 @@ use std::sync::Arc;
 
 use super::error::MujocoError;
 use super::physics::{default_physics, Physics, PhysicsData, PhysicsModel};
-
-/// The kinds of named model objects that can be looked up with [`Model::id`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ObjKind {
-    /// A body (`<body>`).
-    Body,
-    /// A joint (`<joint>`, `<freejoint>`).
-    Joint,
-    /// A geom (`<geom>`).
-    Geom,
-    /// A site (`<site>`).
-    Site,
-    /// A sensor (`<sensor>` children).
-    Sensor,
-    /// An actuator (`<actuator>` children).
-    Actuator,
-    /// A keyframe (`<key>`).
-    Key,
-}
-
-impl ObjKind {
-    fn label(self) -> &'static str {
-        match self {
-            ObjKind::Body => "body",
-            ObjKind::Joint => "joint",
-            ObjKind::Geom => "geom",
-            ObjKind::Site => "site",
-            ObjKind::Sensor => "sensor",
-            ObjKind::Actuator => "actuator",
-            ObjKind::Key => "keyframe",
-        }
-    }
-}
-
-/// MuJoCo's simulator warnings (`mjtWarning`), counted per [`Data`] since its last reset.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Warning {
-    /// (Near) singular inertia matrix.
-    Inertia,
-    /// Too many contacts for the contact buffer; some were dropped.
-    ContactFull,
-    /// Too many constraints for the constraint buffer; some were dropped.
-    ConstraintFull,
-    /// Too many visual geoms (rendering only). MuJoCo 3 no longer has this warning: with
-    /// [`Physics::Mujoco3`] its count is always 0.
-    VisualGeomFull,
-    /// A non-finite or huge number in `qpos`; MuJoCo reset the state.
-    BadQpos,
-    /// A non-finite or huge number in `qvel`; MuJoCo reset the state.
-    BadQvel,
-    /// A non-finite or huge number in `qacc`; MuJoCo reset the state.
-    BadQacc,
-    /// A non-finite or huge number in `ctrl`; MuJoCo zeroed the controls.
-    BadCtrl,
-}
-
-impl Warning {
-    /// The warnings that mean the simulated state can no longer be trusted: the bad-number
-    /// warnings and the buffer overflows. (Inertia and visual warnings do not count.)
-    pub const UNSTABLE: [Warning; 6] = [
-        Warning::ContactFull,
-        Warning::ConstraintFull,
-        Warning::BadQpos,
-        Warning::BadQvel,
-        Warning::BadQacc,
-        Warning::BadCtrl,
-    ];
-}
+pub use super::physics::{ContactForce, ObjKind, Warning};
 
 /// A compiled MuJoCo model, read-only after loading except for [`Model::set_body_pose`]. See
 /// the module doc on threads.
@@ -133,14 +66,14 @@ impl Model {
         path: impl AsRef<Path>,
         physics: Physics,
     ) -> Result<Model, MujocoError> {
-        let raw = super::physics::load_xml_file(physics, path.as_ref())?;
+        let raw = load_xml_file(physics, path.as_ref())?;
         Ok(Model { raw })
     }
 
     /// Like [`Model::from_xml_str`], with `physics`. A backend this build lacks gives
     /// [`MujocoError::Unavailable`].
     pub fn from_xml_str_with(xml: &str, physics: Physics) -> Result<Model, MujocoError> {
-        let raw = super::physics::load_xml_str(physics, xml)?;
+        let raw = load_xml_str(physics, xml)?;
         Ok(Model { raw })
     }
 
@@ -280,19 +213,6 @@ impl Model {
         }
         self.raw.name_to_id(kind, name).ok_or_else(unknown)
     }
-}
-
-/// The force of one contact, from `mj_contactForce`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ContactForce {
-    /// The first geom of the contact.
-    pub geom1: usize,
-    /// The second geom of the contact.
-    pub geom2: usize,
-    /// The contact point in world coordinates.
-    pub pos: [f64; 3],
-    /// Normal force, two tangential forces, then three torques, in the contact frame.
-    pub force: [f64; 6],
 }
 
 /// The simulation state of a [`Model`] (MuJoCo's `mjData`); holds an `Arc` of its model, so
@@ -502,5 +422,63 @@ impl Data {
     /// Whether `qpos` and `qvel` are all finite.
     pub fn state_is_finite(&self) -> bool {
         self.qpos().iter().chain(self.qvel()).all(|x| x.is_finite())
+    }
+}
+
+impl Physics {
+    /// Checks that the backend can load models: for MuJoCo 2 that its library opens and is
+    /// version 2.2.2 ([`check_library`](super::check_library)), for MuJoCo 3 that it is in
+    /// this build and that the linked library is the version `mujoco-rs` was generated for.
+    /// Call it at start-up to fail early with a clear message; every model load checks too.
+    pub fn check(self) -> Result<(), MujocoError> {
+        match self {
+            Physics::Mujoco2 => super::library::check_library(),
+            Physics::Mujoco3 => mujoco3_check(),
+        }
+    }
+}
+
+/// Compiles the MJCF text `xml` with `physics`.
+fn load_xml_str(physics: Physics, xml: &str) -> Result<Box<dyn PhysicsModel>, MujocoError> {
+    match physics {
+        Physics::Mujoco2 => super::mj2::load_xml_str(xml),
+        #[cfg(feature = "mujoco3")]
+        Physics::Mujoco3 => super::mj3::load_xml_str(xml),
+        #[cfg(not(feature = "mujoco3"))]
+        Physics::Mujoco3 => Err(mujoco3_not_built()),
+    }
+}
+
+/// Loads and compiles the MJCF file at `path` with `physics`.
+fn load_xml_file(physics: Physics, path: &Path) -> Result<Box<dyn PhysicsModel>, MujocoError> {
+    match physics {
+        Physics::Mujoco2 => super::mj2::load_xml_file(path),
+        #[cfg(feature = "mujoco3")]
+        Physics::Mujoco3 => super::mj3::load_xml_file(path),
+        #[cfg(not(feature = "mujoco3"))]
+        Physics::Mujoco3 => Err(mujoco3_not_built()),
+    }
+}
+
+/// [`Physics::check`] for MuJoCo 3.
+#[cfg(feature = "mujoco3")]
+fn mujoco3_check() -> Result<(), MujocoError> {
+    super::mj3::check()
+}
+
+/// [`Physics::check`] for MuJoCo 3 in a build without it.
+#[cfg(not(feature = "mujoco3"))]
+fn mujoco3_check() -> Result<(), MujocoError> {
+    Err(mujoco3_not_built())
+}
+
+/// The error of every MuJoCo 3 request in a build without the `mujoco3` feature.
+#[cfg(not(feature = "mujoco3"))]
+fn mujoco3_not_built() -> MujocoError {
+    MujocoError::Unavailable {
+        physics: Physics::Mujoco3.name(),
+        reason: "this build does not include MuJoCo 3.17; rebuild with `--features mujoco3` \
+                 (which links libmujoco.so.3.17.0 through mujoco-rs)"
+            .into(),
     }
 }
