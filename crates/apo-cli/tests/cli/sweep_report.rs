@@ -76,7 +76,12 @@ fn report_numbers_by_hand() {
     assert_eq!(runs.len(), 5);
     let report = report::report(&runs, 2, &mut |env, options| {
         assert_eq!(env, "CartPole-v1");
-        assert_eq!(options, &apo_envs::MakeOptions::default());
+        // built as the runs were: their config's options, MuJoCo 2.2.2 spelled out
+        let expected = apo_envs::MakeOptions {
+            physics: Some(apo_envs::mujoco::Physics::Mujoco2),
+            ..Default::default()
+        };
+        assert_eq!(options, &expected);
         Ok(Baseline {
             mean: 10.0,
             worst: 5.0,
