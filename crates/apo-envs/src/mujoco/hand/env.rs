@@ -113,6 +113,22 @@ pub const RESET_TRIES: usize = 100;
 /// The longest goal (Reach's 15 fingertip coordinates).
 const MAX_GOAL_DIM: usize = 15;
 
+/// [`MujocoError::Shape`] for the first `(what, found, expected)` of `checks` that differ.
+fn check_shapes(
+    env: &'static str,
+    checks: &[(&'static str, usize, usize)],
+) -> Result<(), MujocoError> {
+    match checks.iter().find(|(_, found, expected)| found != expected) {
+        Some(&(what, found, expected)) => Err(MujocoError::Shape {
+            env,
+            what,
+            found,
+            expected,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// `‖a − b‖₂` over the common length.
 fn distance(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
@@ -220,20 +236,14 @@ impl HandEnv {
         } else {
             (ROBOT_JOINTS, ROBOT_JOINTS)
         };
-        for (what, found, expected) in [
-            ("nq", model.nq(), nq_nv.0),
-            ("nv", model.nv(), nq_nv.1),
-            ("nu", model.nu(), ACTIONS),
-        ] {
-            if found != expected {
-                return Err(MujocoError::Shape {
-                    env,
-                    what,
-                    found,
-                    expected,
-                });
-            }
-        }
+        check_shapes(
+            env,
+            &[
+                ("nq", model.nq(), nq_nv.0),
+                ("nv", model.nv(), nq_nv.1),
+                ("nu", model.nu(), ACTIONS),
+            ],
+        )?;
         let joint = |name: &str| -> Result<(usize, usize, usize), MujocoError> {
             let id = model.id(ObjKind::Joint, name)?;
             let unknown = || MujocoError::UnknownName {
@@ -247,20 +257,14 @@ impl HandEnv {
         // The observation reads qpos[..24] and qvel[..24] as the hand's joints in this order.
         for (i, name) in JOINTS.iter().enumerate() {
             let (id, qpos, qvel) = joint(format!("robot0:{name}").as_str())?;
-            for (what, found) in [
-                ("the index of a hand joint", id),
-                ("the qpos address of a hand joint", qpos),
-                ("the qvel address of a hand joint", qvel),
-            ] {
-                if found != i {
-                    return Err(MujocoError::Shape {
-                        env,
-                        what,
-                        found,
-                        expected: i,
-                    });
-                }
-            }
+            check_shapes(
+                env,
+                &[
+                    ("the index of a hand joint", id, i),
+                    ("the qpos address of a hand joint", qpos, i),
+                    ("the qvel address of a hand joint", qvel, i),
+                ],
+            )?;
         }
         let mut centers = [(0, None); ACTIONS];
         let mut ctrl_range = [[0.0; 2]; ACTIONS];
@@ -489,18 +493,10 @@ impl HandEnv {
     pub fn set_state(&mut self, qpos: &[f64], qvel: &[f64]) -> Result<(), MujocoError> {
         let env = self.task.name();
         let (q, v) = self.data.state_mut();
-        for (what, found, expected) in
-            [("qpos", qpos.len(), q.len()), ("qvel", qvel.len(), v.len())]
-        {
-            if found != expected {
-                return Err(MujocoError::Shape {
-                    env,
-                    what,
-                    found,
-                    expected,
-                });
-            }
-        }
+        check_shapes(
+            env,
+            &[("qpos", qpos.len(), q.len()), ("qvel", qvel.len(), v.len())],
+        )?;
         q.copy_from_slice(qpos);
         v.copy_from_slice(qvel);
         self.data.forward();
