@@ -85,7 +85,10 @@ impl Env for AtariEnv {
                         reward,
                         terminated: true,
                         truncated: false,
-                        info: apo_envs::StepInfo { unstable: true },
+                        info: apo_envs::StepInfo {
+                            unstable: true,
+                            success: None,
+                        },
                     };
                 }
             }

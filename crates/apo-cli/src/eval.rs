@@ -22,6 +22,18 @@ pub struct EvalResult {
     pub returns: Vec<f64>,
     /// Length of each episode.
     pub lengths: Vec<usize>,
+    /// Whether each episode ended in success, for tasks that judge it (the hand tasks; the
+    /// last step's `info.success`), else `None`.
+    pub success: Vec<Option<bool>>,
+}
+
+impl EvalResult {
+    /// The fraction of the judged episodes that ended in success; `None` when none was judged.
+    pub fn success_rate(&self) -> Option<f64> {
+        let judged: Vec<bool> = self.success.iter().flatten().copied().collect();
+        (!judged.is_empty())
+            .then(|| judged.iter().filter(|&&s| s).count() as f64 / judged.len() as f64)
+    }
 }
 
 /// Runs `episodes` episodes of the policy in checkpoint `which` of `run_dir` (on the CPU),
@@ -76,11 +88,12 @@ pub fn evaluate(
     let mut result = EvalResult {
         returns: vec![],
         lengths: vec![],
+        success: vec![],
     };
     for episode in 0..episodes {
         env.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
         let (mut ret, mut len) = (0.0, 0);
-        loop {
+        let success = loop {
             if let Some(rms) = &state.run.normalizer {
                 rms.normalize(&mut obs);
             }
@@ -94,11 +107,12 @@ pub fn evaluate(
             ret += t.reward;
             len += 1;
             if t.done() {
-                break;
+                break t.info.success;
             }
-        }
+        };
         result.returns.push(ret);
         result.lengths.push(len);
+        result.success.push(success);
     }
     Ok((result, state.run.epoch))
 }

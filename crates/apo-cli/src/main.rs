@@ -467,8 +467,11 @@ fn eval(
     let (result, epoch) = apo_cli::eval::evaluate(run, which, episodes, deterministic, seed)?;
     let stats = apo_core::EpisodeStats::from_episodes(&result.returns, &result.lengths, 0.0)
         .context("no episode was run")?;
+    let success = result
+        .success_rate()
+        .map_or_else(String::new, |rate| format!(" success_rate={rate:.3}"));
     println!(
-        "checkpoint_epoch={epoch} episodes={} mean_return={:.3} std_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}",
+        "checkpoint_epoch={epoch} episodes={} mean_return={:.3} std_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}{success}",
         stats.count, stats.ret_mean, stats.ret_std, stats.ret_min, stats.ret_max, stats.len_mean
     );
     Ok(())

@@ -20,6 +20,9 @@ pub struct StepInfo {
     /// The simulator became unstable (non-finite state, bad accelerations):
     /// the episode was ended with `terminated = true` and must be counted, not trusted.
     pub unstable: bool,
+    /// Whether the task's goal is achieved after this step (Gymnasium-Robotics'
+    /// `info["is_success"]`), for tasks that define a goal (the hand tasks); `None` for the others.
+    pub success: Option<bool>,
 }
 
 /// The outcome of [`Env::step`] besides the observation.

@@ -386,6 +386,7 @@ fn a_hand_holding_its_pose_reaches_its_own_fingertips() {
     assert!(!t.done(), "{t:?}");
     assert!(t.reward.abs() < 1e-3, "reward {}", t.reward);
     assert!(env.is_success());
+    assert_eq!(t.info.success, Some(true), "the step reports the success");
     assert_eq!(t.reward, env.dense_reward());
     assert_block(&obs[48..63], &env.achieved_goal(), "achieved goal");
     // The same pose with the goal 2 cm away in one coordinate is not a success.
@@ -394,6 +395,7 @@ fn a_hand_holding_its_pose_reaches_its_own_fingertips() {
     env.set_goal(&away).unwrap();
     let (t, _) = step(&mut env, &hold);
     assert!((t.reward + 0.02).abs() < 1e-3 && !env.is_success(), "{t:?}");
+    assert_eq!(t.info.success, Some(false));
 }
 
 #[test]
@@ -493,7 +495,7 @@ fn nan_actions_and_states_end_the_episode_as_unstable() {
         action[3] = f32::NAN;
         let (t, obs) = step(&mut env, &action);
         assert!(
-            t.terminated && t.info.unstable && t.reward == 0.0,
+            t.terminated && t.info.unstable && t.reward == 0.0 && t.info.success.is_none(),
             "{task:?}: {t:?}"
         );
         assert!(obs.iter().all(|x| x.is_finite()), "{task:?}");

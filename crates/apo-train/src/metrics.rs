@@ -31,6 +31,10 @@ pub struct ProgressRow {
     pub ep_ret_std: Option<f64>,
     /// Mean episode length.
     pub ep_len_mean: Option<f64>,
+    /// Fraction of the epoch's episodes that ended in success, for tasks that judge it (the
+    /// hand tasks; Gymnasium-Robotics' success rate).
+    #[serde(default)]
+    pub success_rate: Option<f64>,
     /// Empirical bound `J − k·Var`.
     pub bound: Option<f64>,
     /// Its Selberg confidence.
@@ -117,11 +121,13 @@ impl ProgressRow {
         }
     }
 
-    /// A row from an epoch's episode statistics and update report.
+    /// A row from an epoch's episode statistics, success rate, unstable-episode count and
+    /// update report.
     pub fn new(
         epoch: usize,
         env_steps: u64,
         stats: Option<&EpisodeStats>,
+        success_rate: Option<f64>,
         unstable_episodes: usize,
         report: &UpdateReport,
         times: EpochTimes,
@@ -140,6 +146,7 @@ impl ProgressRow {
             ep_ret_max: stats.map(|s| s.ret_max),
             ep_ret_std: stats.map(|s| s.ret_std),
             ep_len_mean: stats.map(|s| s.len_mean),
+            success_rate,
             bound: stats.map(|s| s.bound),
             confidence: stats.map(|s| s.confidence),
             kl: report.kl,

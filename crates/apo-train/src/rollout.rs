@@ -14,6 +14,12 @@
 //! cut by the end of the epoch from `V(current observation)`.
 //! An episode ended by a simulator instability is treated as terminated (value 0), counted in
 //! [`Rollout::unstable`], and left out of the return statistics.
+//!
+//! # Success
+//!
+//! For tasks that judge success (the hand tasks), an episode counts as a success when its last
+//! step reports one, as Gymnasium-Robotics' success rate is measured: [`Rollout::succeeded`] of
+//! [`Rollout::judged`].
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -44,8 +50,20 @@ pub struct Rollout {
     pub lengths: Vec<usize>,
     /// Episodes ended by a simulator instability.
     pub unstable: usize,
+    /// Of the episodes that ended (stable ones), those whose task judges success
+    /// ([`apo_envs::StepInfo::success`] on their last step)…
+    pub judged: usize,
+    /// …and those of them that ended in success.
+    pub succeeded: usize,
     /// Environment steps taken.
     pub steps: u64,
+}
+
+impl Rollout {
+    /// `succeeded / judged`; `None` when no episode that ended was judged.
+    pub fn success_rate(&self) -> Option<f64> {
+        (self.judged > 0).then(|| self.succeeded as f64 / self.judged as f64)
+    }
 }
 
 /// How often (in vector steps) [`Collector::collect`] reports its progress.
@@ -173,6 +191,8 @@ impl Collector {
             returns: vec![],
             lengths: vec![],
             unstable: 0,
+            judged: 0,
+            succeeded: 0,
             steps: 0,
         };
         let mut row = vec![0.0f32; obs_dim];
@@ -240,6 +260,10 @@ impl Collector {
                 } else {
                     rollout.returns.push(ep_ret[i]);
                     rollout.lengths.push(ep_len[i]);
+                    if let Some(success) = step.info.success {
+                        rollout.judged += 1;
+                        rollout.succeeded += usize::from(success);
+                    }
                 }
                 ep_ret[i] = 0.0;
                 ep_len[i] = 0;

@@ -341,6 +341,7 @@ where
             state.epoch,
             state.env_steps,
             stats.as_ref(),
+            rollout.success_rate(),
             rollout.unstable,
             &update,
             EpochTimes {
@@ -367,7 +368,7 @@ where
     }
 }
 
-/// Every rank's episodes (in rank order), instabilities and steps, on every rank.
+/// Every rank's episodes (in rank order), instabilities, successes and steps, on every rank.
 fn gather_episodes(comm: &Comm, rollout: &mut crate::rollout::Rollout) {
     let mine: Vec<f64> = rollout
         .returns
@@ -381,12 +382,19 @@ fn gather_episodes(comm: &Comm, rollout: &mut crate::rollout::Rollout) {
         returns.extend_from_slice(r);
         lengths.extend(l.iter().map(|&l| l as usize));
     }
-    let mut counts = [rollout.unstable as f64, rollout.steps as f64];
+    let mut counts = [
+        rollout.unstable as f64,
+        rollout.steps as f64,
+        rollout.judged as f64,
+        rollout.succeeded as f64,
+    ];
     comm.sum(&mut counts);
     rollout.returns = returns;
     rollout.lengths = lengths;
     rollout.unstable = counts[0] as usize;
     rollout.steps = counts[1] as u64;
+    rollout.judged = counts[2] as usize;
+    rollout.succeeded = counts[3] as usize;
 }
 
 /// What is not finite after an update, if anything: a loss, the KL, the entropy, or a parameter.

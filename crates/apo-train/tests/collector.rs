@@ -1,12 +1,13 @@
 //! The collector's bootstrapping rules, against rewards-to-go computed by hand: a terminated
 //! episode ends with value 0, a truncated one with V(its final observation), one cut by the
 //! epoch with V(the current observation), an unstable one with 0 (even when it was also
-//! truncated), and an unstable episode is counted, not reported as a return.
+//! truncated), and an unstable episode is counted, not reported as a return. The success rate
+//! counts the last step of each stable episode whose task judges success.
 
 use apo_core::flat::{from_host, unflatten};
 use apo_core::inference::{HostPolicy, HostValue};
 use apo_core::{ActionKind, MlpPolicyConfig, PolicyFamily, ValueConfig};
-use apo_envs::{Action, Env, Space, StepInfo, Transition, VecEnv};
+use apo_envs::{Action, Env, Space, Transition, VecEnv};
 use apo_train::{Collector, HostActor};
 use burn::backend::NdArray;
 use std::sync::atomic::AtomicBool;
@@ -17,6 +18,10 @@ enum End {
     Truncated,
     /// Unstable and truncated at once: the unstable rule must win.
     Unstable,
+    /// Truncated in success, after steps that were not.
+    Reached,
+    /// Truncated without success, one step after a step in success.
+    Missed,
 }
 
 /// Plays a script: episodes of the given lengths and endings (the last one never ends),
@@ -59,14 +64,20 @@ impl Env for Script {
             ..Default::default()
         };
         if let Some(&(len, end)) = self.episodes.get(self.episode) {
+            match end {
+                End::Reached => step.info.success = Some(self.t == len),
+                End::Missed => step.info.success = Some(self.t + 1 == len),
+                _ => {}
+            }
             if self.t == len {
                 match end {
                     End::Terminated => step.terminated = true,
                     End::Truncated => step.truncated = true,
                     End::Unstable => {
                         step.truncated = true;
-                        step.info = StepInfo { unstable: true };
+                        step.info.unstable = true;
                     }
+                    End::Reached | End::Missed => step.truncated = true,
                 }
             }
         }
@@ -132,6 +143,36 @@ fn bootstrapping_rules_by_hand() {
     assert_eq!(rollout.lengths, vec![2, 3]);
     assert_eq!(rollout.unstable, 1);
     assert_eq!(rollout.steps, 14);
+    assert_eq!((rollout.judged, rollout.success_rate()), (0, None));
+}
+
+#[test]
+fn the_success_rate_counts_the_last_step_of_the_judged_stable_episodes() {
+    let envs = VecEnv::new(vec![
+        // ends at steps 2 (success), 5 (missed), 7 (success); the one after is cut by the epoch
+        Script::boxed(vec![
+            (2, End::Reached),
+            (3, End::Missed),
+            (2, End::Reached),
+            (3, End::Reached),
+        ]),
+        // unstable (not counted), terminated (not judged), missed, then cut by the epoch
+        Script::boxed(vec![
+            (2, End::Unstable),
+            (2, End::Terminated),
+            (3, End::Missed),
+            (3, End::Reached),
+        ]),
+    ])
+    .expect("same spaces");
+    let mut collector = Collector::from_envs(envs, 16, 0.5, 0.97, None);
+    let rollout = collector
+        .collect(&mut actor(), 3, &AtomicBool::new(false), &mut |_| {})
+        .expect("not stopped");
+    assert_eq!(rollout.returns.len(), 5);
+    assert_eq!(rollout.unstable, 1);
+    assert_eq!((rollout.judged, rollout.succeeded), (4, 2));
+    assert_eq!(rollout.success_rate(), Some(0.5));
 }
 
 #[test]

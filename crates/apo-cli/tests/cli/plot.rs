@@ -22,6 +22,7 @@ pub fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> Progr
         ep_ret_max: Some(max),
         ep_ret_std: Some(1.0),
         ep_len_mean: Some(100.0),
+        success_rate: None,
         bound: Some(mean),
         confidence: Some(0.5),
         kl: 0.01,

@@ -249,3 +249,42 @@ fn wgpu_runs_without_runtime_dir_noise() {
     assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
     assert!(Path::new(&run).join("progress.csv").exists());
 }
+
+#[test]
+fn hand_runs_record_their_success_rate_and_eval_prints_it() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("hand");
+    // 2 epochs of two 50-step episodes each
+    ok(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "HandReachDense",
+        "--epochs",
+        "2",
+        "--steps-per-epoch",
+        "100",
+        "--quiet",
+        "--out",
+        path(&run),
+    ]);
+    let csv = std::fs::read_to_string(run.join("progress.csv")).expect("progress.csv");
+    let header = csv.lines().next().expect("header");
+    assert!(header.split(',').any(|c| c == "success_rate"), "{header}");
+    let rows = apo_cli::progress::read(&run.join("progress.csv")).expect("rows");
+    for row in &rows {
+        assert_eq!(row.episodes, 2, "{row:?}");
+        let rate = row.success_rate.expect("a hand task judges success");
+        assert!([0.0, 0.5, 1.0].contains(&rate), "{rate}");
+    }
+    let eval = ok(&["eval", "--run", path(&run), "--episodes", "2"]);
+    assert!(eval.contains(" success_rate="), "{eval}");
+    // a task without a goal: an empty column, and no success rate from eval
+    let cartpole = tmp.path().join("cartpole");
+    train(&cartpole, "ppo", &[]);
+    let rows = apo_cli::progress::read(&cartpole.join("progress.csv")).expect("rows");
+    assert!(rows.iter().all(|r| r.success_rate.is_none()), "{rows:?}");
+    let eval = ok(&["eval", "--run", path(&cartpole), "--episodes", "2"]);
+    assert!(!eval.contains("success_rate"), "{eval}");
+}

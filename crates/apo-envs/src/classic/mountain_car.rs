@@ -106,7 +106,10 @@ impl Env for MountainCarContinuous {
             reward,
             terminated: reached || unstable,
             truncated: false,
-            info: StepInfo { unstable },
+            info: StepInfo {
+                unstable,
+                success: None,
+            },
         }
     }
 }

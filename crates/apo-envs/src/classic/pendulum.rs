@@ -108,7 +108,10 @@ impl Env for Pendulum {
             reward: -cost,
             terminated: unstable,
             truncated: false,
-            info: StepInfo { unstable },
+            info: StepInfo {
+                unstable,
+                success: None,
+            },
         }
     }
 }

@@ -331,7 +331,10 @@ pub(crate) fn transition(outcome: Option<(f64, bool)>, obs: &mut [f32]) -> Trans
         reward,
         terminated,
         truncated: false,
-        info: StepInfo { unstable },
+        info: StepInfo {
+            unstable,
+            success: None,
+        },
     }
 }
 

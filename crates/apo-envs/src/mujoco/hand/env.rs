@@ -447,8 +447,8 @@ impl HandEnv {
     }
 
     /// Gymnasium's `info["is_success"]` for the current state (after a step or a reset):
-    /// `d < 0.01` (Reach); `d_pos < 0.01` and `d_rot < 0.1` (Block, Egg). Not part of
-    /// [`Transition`]: read it after [`Env::step`].
+    /// `d < 0.01` (Reach); `d_pos < 0.01` and `d_rot < 0.1` (Block, Egg). [`Env::step`] reports
+    /// it as `info.success` (`None` after an unstable step).
     pub fn is_success(&self) -> bool {
         let (d, d_rot) = self.goal_distances();
         d < DISTANCE_THRESHOLD && (!self.task.manipulates() || d_rot < ROTATION_THRESHOLD)
@@ -761,7 +761,11 @@ impl Env for HandEnv {
         self.place_target();
         let outcome = (!self.data.unstable_since(warnings)).then(|| (self.dense_reward(), false));
         self.observe(obs);
-        transition(outcome, obs)
+        let mut step = transition(outcome, obs);
+        if !step.info.unstable {
+            step.info.success = Some(self.is_success());
+        }
+        step
     }
 }
 
