@@ -18,9 +18,9 @@ use apo_envs::mujoco::{set_default_physics, Model, MujocoEnv, Physics, Task};
 use apo_envs::{registry, Action, Env};
 use rand::{Rng, SeedableRng};
 
-/// Builds task `T` on `physics`.
-fn env<T: Task>(physics: Physics) -> MujocoEnv<T> {
-    let model = Model::from_xml_str_with(T::MJCF, physics)
+/// Builds task `T` with the model `mjcf` on `physics`.
+fn env<T: Task>(mjcf: &str, physics: Physics) -> MujocoEnv<T> {
+    let model = Model::from_xml_str_with(mjcf, physics)
         .unwrap_or_else(|e| panic!("{} on {physics}: {e}", T::NAME));
     MujocoEnv::<T>::with_model(Arc::new(model))
         .unwrap_or_else(|e| panic!("{} on {physics}: {e}", T::NAME))
@@ -37,12 +37,28 @@ fn gap<T: Task>(two: &MujocoEnv<T>, three: &MujocoEnv<T>) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Two versions' trajectories compared step by step.
+struct Divergence {
+    /// The largest [`gap`] over the steps.
+    worst: f64,
+    /// The steps compared.
+    steps: usize,
+    /// The first (step, contacts in 2.2.2) where the gap passed 1e-9.
+    apart: Option<(usize, usize)>,
+    /// Each step's gap, and whether either version had a contact after it.
+    each: Vec<(f64, bool)>,
+}
+
 /// Steps `T` on both physics from the same seeded reset with the same uniform random actions
-/// in [−1, 1] for `steps` steps (or until either episode ends) and returns the largest
-/// [`gap`] over the steps, with the number of steps compared.
-fn divergence<T: Task>(steps: usize) -> (f64, usize, Option<(usize, usize)>) {
-    let mut two = env::<T>(Physics::Mujoco2);
-    let mut three = env::<T>(Physics::Mujoco3);
+/// in [−1, 1] for `steps` steps (or until either episode ends).
+fn divergence<T: Task>(steps: usize) -> Divergence {
+    divergence_of::<T>(T::MJCF, steps)
+}
+
+/// [`divergence`] with the model `mjcf`.
+fn divergence_of<T: Task>(mjcf: &str, steps: usize) -> Divergence {
+    let mut two = env::<T>(mjcf, Physics::Mujoco2);
+    let mut three = env::<T>(mjcf, Physics::Mujoco3);
     let n = T::OBS_DIM;
     let (mut a, mut b) = (vec![0.0f32; n], vec![0.0f32; n]);
     two.reset(Some(3), &mut a);
@@ -53,23 +69,31 @@ fn divergence<T: Task>(steps: usize) -> (f64, usize, Option<(usize, usize)>) {
     assert!(gap(&two, &three) < 1e-12, "{}: the same start", T::NAME);
     let mut rng = rand::rngs::StdRng::seed_from_u64(11);
     let mut action = vec![0.0f32; T::SIZES.nu];
-    let mut worst = 0.0f64;
-    let mut first_apart = None;
+    let mut out = Divergence {
+        worst: 0.0,
+        steps: 0,
+        apart: None,
+        each: Vec::new(),
+    };
     for step in 0..steps {
         action
             .iter_mut()
             .for_each(|x| *x = rng.random_range(-1.0..1.0));
         let ta = two.step(Action::Continuous(&action), &mut a);
         let tb = three.step(Action::Continuous(&action), &mut b);
-        worst = worst.max(gap(&two, &three));
-        if first_apart.is_none() && worst > 1e-9 {
-            first_apart = Some((step + 1, two.data().ncon()));
+        let now = gap(&two, &three);
+        out.each
+            .push((now, two.data().ncon() + three.data().ncon() > 0));
+        out.worst = out.worst.max(now);
+        out.steps = step + 1;
+        if out.apart.is_none() && out.worst > 1e-9 {
+            out.apart = Some((step + 1, two.data().ncon()));
         }
         if ta.terminated || tb.terminated {
-            return (worst, step + 1, first_apart);
+            break;
         }
     }
-    (worst, steps, first_apart)
+    out
 }
 
 /// The tolerance on [`gap`] for the Gym tasks whose trajectories agree: 1e-8, where the
@@ -90,11 +114,13 @@ fn gym_trajectories_stay_close_across_the_two_versions() {
         ("Swimmer", divergence::<Swimmer>(1000)),
         ("Walker2d", divergence::<Walker2d>(1000)),
     ];
-    for (name, (worst, steps, apart)) in close {
-        eprintln!("{name}: gap {worst:.3e} over {steps} steps");
+    for (name, d) in close {
+        eprintln!("{name}: gap {:.3e} over {} steps", d.worst, d.steps);
         assert!(
-            worst < TOLERANCE,
-            "{name}: gap {worst:.3e} at step {apart:?}"
+            d.worst < TOLERANCE,
+            "{name}: gap {:.3e} at step {:?}",
+            d.worst,
+            d.apart
         );
     }
     // The others part within their first steps (docs/mujoco.md, "MuJoCo 3"): the gap is
@@ -106,10 +132,47 @@ fn gym_trajectories_stay_close_across_the_two_versions() {
         ("Humanoid", divergence::<Humanoid>(1000)),
         ("HumanoidStandup", divergence::<HumanoidStandup>(1000)),
     ];
-    for (name, (worst, steps, apart)) in apart {
-        eprintln!("{name}: gap {worst:.3e} over {steps} steps, above {TOLERANCE:e} from (step, contacts) {apart:?}");
-        assert!(worst.is_finite() && steps > 0, "{name}");
+    for (name, d) in apart {
+        eprintln!(
+            "{name}: gap {:.3e} over {} steps, above 1e-9 from (step, contacts) {:?}",
+            d.worst, d.steps, d.apart
+        );
+        assert!(d.worst.is_finite() && d.steps > 0, "{name}");
     }
+}
+
+#[test]
+fn humanoid_parts_through_its_solver_budget_and_then_at_the_first_contact() {
+    // The knee limits (−160°..−2°) are active from the start (q = 0), so the constraint solver
+    // runs from the first step; its registered budget (PGS, 50 iterations, tolerance 1e-8)
+    // stops the two versions' iterations at points about 1e-9 apart.
+    let first = divergence::<Humanoid>(3).each[0].0;
+    assert!((1e-12..1e-6).contains(&first), "step 1 gap {first:.3e}");
+    // Solved to convergence, the versions agree to rounding until the first contact.
+    let converged =
+        Humanoid::MJCF.replace(r#"iterations="50""#, r#"iterations="1000" tolerance="0""#);
+    assert_ne!(
+        converged,
+        Humanoid::MJCF,
+        "the option to replace is in the model"
+    );
+    let each = divergence_of::<Humanoid>(&converged, 1000).each;
+    let contact = each
+        .iter()
+        .position(|&(_, contact)| contact)
+        .expect("the humanoid falls onto the floor");
+    assert!(contact >= 5, "first contact after step {}", contact + 1);
+    let before = each[..contact].iter().map(|&(g, _)| g).fold(0.0, f64::max);
+    eprintln!(
+        "Humanoid, solver converged: gap {before:.3e} over the {contact} steps before the first \
+         contact, {:.3e} at it",
+        each[contact].0
+    );
+    assert!(before < 1e-12, "gap {before:.3e} before the first contact");
+    assert!(
+        each[contact].0 > 1e-6,
+        "the contact step parts the versions"
+    );
 }
 
 #[test]
