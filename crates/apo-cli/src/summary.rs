@@ -1,5 +1,6 @@
 //! The paper's metrics over runs: the average of the epochs' mean return and of their
-//! worst return, over all epochs and over the last N epochs; printed as a table or as CSV.
+//! worst return, over all epochs and over the last N epochs (and, for tasks that judge
+//! success, the average success rate over the last N); printed as a table or as CSV.
 
 use std::path::Path;
 
@@ -24,6 +25,8 @@ pub struct RunSummary {
     pub worst_last: Option<f64>,
     /// Average environment steps per second (rollout and update).
     pub steps_per_s: f64,
+    /// Average over the last N epochs of the success rate, for tasks that judge success.
+    pub success_last: Option<f64>,
 }
 
 /// Summarizes the run in `dir` with the last `last` epochs.
@@ -38,6 +41,7 @@ pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
 pub fn summarize_rows(rows: &[progress::ProgressRow], last: usize) -> RunSummary {
     let means: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_mean).collect();
     let worst: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_min).collect();
+    let success: Vec<f64> = rows.iter().filter_map(|r| r.success_rate).collect();
     let time = rows.last().map_or(0.0, |r| r.time_s);
     let env_steps = rows.last().map_or(0, |r| r.env_steps);
     RunSummary {
@@ -52,6 +56,7 @@ pub fn summarize_rows(rows: &[progress::ProgressRow], last: usize) -> RunSummary
         } else {
             0.0
         },
+        success_last: average_over_epochs(&success, Some(last)),
     }
 }
 
@@ -64,10 +69,11 @@ pub fn mean_std(values: &[f64]) -> (f64, f64) {
 }
 
 /// A run's values in the column order of [`table`] and [`csv`], formatted (returns with two
-/// decimals, steps/s as a whole number); `None` where the run has no episode to average.
-fn cells(s: &RunSummary) -> [Option<String>; 7] {
+/// decimals, steps/s as a whole number, the success rate with three); `None` where the run has
+/// no episode to average. The success column only `with_success`.
+fn cells(s: &RunSummary, with_success: bool) -> Vec<Option<String>> {
     let returns = |v: Option<f64>| v.map(|v| format!("{v:.2}"));
-    [
+    let mut cells = vec![
         Some(s.epochs.to_string()),
         Some(s.env_steps.to_string()),
         returns(s.mean_all),
@@ -75,30 +81,72 @@ fn cells(s: &RunSummary) -> [Option<String>; 7] {
         returns(s.worst_all),
         returns(s.worst_last),
         Some(format!("{:.0}", s.steps_per_s)),
-    ]
+    ];
+    if with_success {
+        cells.push(s.success_last.map(|v| format!("{v:.3}")));
+    }
+    cells
+}
+
+/// The column headers after `run`, in the words of [`table`] or the names of [`csv`].
+fn headers(last: usize, with_success: bool, csv: bool) -> Vec<String> {
+    let mut names: Vec<String> = if csv {
+        vec![
+            "epochs".into(),
+            "env_steps".into(),
+            "mean_all".into(),
+            format!("mean_last{last}"),
+            "worst_all".into(),
+            format!("worst_last{last}"),
+            "steps_per_s".into(),
+        ]
+    } else {
+        vec![
+            "epochs".into(),
+            "env steps".into(),
+            "mean(all)".into(),
+            format!("mean(last {last})"),
+            "worst(all)".into(),
+            format!("worst(last {last})"),
+            "steps/s".into(),
+        ]
+    };
+    if with_success {
+        names.push(if csv {
+            format!("success_last{last}")
+        } else {
+            format!("success(last {last})")
+        });
+    }
+    names
+}
+
+/// Whether any of the runs judged success (then the success column is shown).
+fn any_success(rows: &[(String, RunSummary)]) -> bool {
+    rows.iter().any(|(_, s)| s.success_last.is_some())
 }
 
 /// An aligned table of the runs' summaries (`last`: the N of "last N"), one line per run
 /// under a header: the run names left-aligned, the numbers right-aligned, "-" for a missing
-/// value. Every line ends with a newline.
+/// value; a `success(last N)` column when any run's task judges success. Every line ends with
+/// a newline.
 pub fn table(rows: &[(String, RunSummary)], last: usize) -> String {
-    let header = [
-        "run".to_string(),
-        "epochs".to_string(),
-        "env steps".to_string(),
-        "mean(all)".to_string(),
-        format!("mean(last {last})"),
-        "worst(all)".to_string(),
-        format!("worst(last {last})"),
-        "steps/s".to_string(),
-    ];
-    let lines: Vec<[String; 8]> = std::iter::once(header)
+    let with_success = any_success(rows);
+    let header = std::iter::once("run".to_string())
+        .chain(headers(last, with_success, false))
+        .collect();
+    let lines: Vec<Vec<String>> = std::iter::once(header)
         .chain(rows.iter().map(|(run, s)| {
-            let [a, b, c, d, e, f, g] = cells(s).map(|c| c.unwrap_or_else(|| "-".to_string()));
-            [run.clone(), a, b, c, d, e, f, g]
+            std::iter::once(run.clone())
+                .chain(
+                    cells(s, with_success)
+                        .into_iter()
+                        .map(|c| c.unwrap_or_else(|| "-".to_string())),
+                )
+                .collect()
         }))
         .collect();
-    let mut widths = [0; 8];
+    let mut widths = vec![0; lines[0].len()];
     for line in &lines {
         for (width, cell) in widths.iter_mut().zip(line) {
             *width = (*width).max(cell.chars().count());
@@ -117,22 +165,22 @@ pub fn table(rows: &[(String, RunSummary)], last: usize) -> String {
 }
 
 /// The runs' summaries as CSV (`last`: the N of "last N") with the header
-/// `run,epochs,env_steps,mean_all,mean_last{N},worst_all,worst_last{N},steps_per_s`; fields
-/// are quoted where needed and a missing value is an empty field.
+/// `run,epochs,env_steps,mean_all,mean_last{N},worst_all,worst_last{N},steps_per_s`, and
+/// `success_last{N}` after it when any run's task judges success; fields are quoted where
+/// needed and a missing value is an empty field.
 pub fn csv(rows: &[(String, RunSummary)], last: usize) -> anyhow::Result<String> {
+    let with_success = any_success(rows);
     let mut writer = ::csv::Writer::from_writer(Vec::new());
-    writer.write_record([
-        "run".to_string(),
-        "epochs".to_string(),
-        "env_steps".to_string(),
-        "mean_all".to_string(),
-        format!("mean_last{last}"),
-        "worst_all".to_string(),
-        format!("worst_last{last}"),
-        "steps_per_s".to_string(),
-    ])?;
+    writer.write_record(std::iter::once("run".to_string()).chain(headers(
+        last,
+        with_success,
+        true,
+    )))?;
     for (run, s) in rows {
-        let values = cells(s).map(Option::unwrap_or_default);
+        let values: Vec<String> = cells(s, with_success)
+            .into_iter()
+            .map(Option::unwrap_or_default)
+            .collect();
         writer.write_record(std::iter::once(run).chain(&values))?;
     }
     let bytes = writer
@@ -157,6 +205,7 @@ mod tests {
                     worst_all: Some(-12.0),
                     worst_last: Some(420.0),
                     steps_per_s: 1234.4,
+                    success_last: None,
                 },
             ),
             (
@@ -169,6 +218,7 @@ mod tests {
                     worst_all: None,
                     worst_last: None,
                     steps_per_s: 0.0,
+                    success_last: None,
                 },
             ),
         ]
@@ -236,5 +286,37 @@ mod tests {
             records[1].iter().collect::<Vec<_>>(),
             ["runs/a,b \"quoted\"", "2", "40", "", "", "", "", "0"]
         );
+    }
+
+    #[test]
+    fn a_success_column_appears_when_a_run_judges_success() {
+        let mut rows = rows();
+        rows[0].1.success_last = Some(0.25);
+        let text = table(&rows, 5);
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(lines[0].ends_with("  success(last 5)"), "{text}");
+        assert!(lines[1].ends_with("  0.250"), "{text}");
+        assert!(lines[2].ends_with(" -"), "{text}");
+        let text = csv(&rows, 5).unwrap();
+        let mut lines = text.lines();
+        assert!(lines
+            .next()
+            .unwrap()
+            .ends_with(",steps_per_s,success_last5"));
+        assert!(lines.next().unwrap().ends_with(",1234,0.250"), "{text}");
+        assert!(lines.next().unwrap().ends_with(",0,"), "{text}");
+    }
+
+    #[test]
+    fn the_success_rate_is_averaged_over_the_last_epochs() {
+        let row = |epoch: usize, success_rate: Option<f64>| progress::ProgressRow {
+            epoch,
+            success_rate,
+            ..Default::default()
+        };
+        let rows = [row(1, Some(0.0)), row(2, Some(0.5)), row(3, Some(1.0))];
+        assert_eq!(summarize_rows(&rows, 2).success_last, Some(0.75));
+        assert_eq!(summarize_rows(&rows[..1], 2).success_last, Some(0.0));
+        assert_eq!(summarize_rows(&[row(1, None)], 2).success_last, None);
     }
 }

@@ -13,7 +13,7 @@ pub const TIME_COLUMNS: [&str; 5] = [
 ];
 
 /// One epoch's row. Return statistics are empty when no episode ended in the epoch.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ProgressRow {
     /// Epoch number, from 1.
     pub epoch: usize,

@@ -251,7 +251,7 @@ fn wgpu_runs_without_runtime_dir_noise() {
 }
 
 #[test]
-fn hand_runs_record_their_success_rate_and_eval_prints_it() {
+fn hand_runs_record_their_success_rate_and_eval_and_summary_print_it() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("hand");
     // 2 epochs of two 50-step episodes each
@@ -287,4 +287,10 @@ fn hand_runs_record_their_success_rate_and_eval_prints_it() {
     assert!(rows.iter().all(|r| r.success_rate.is_none()), "{rows:?}");
     let eval = ok(&["eval", "--run", path(&cartpole), "--episodes", "2"]);
     assert!(!eval.contains("success_rate"), "{eval}");
+    // `apo summary` adds the success column when a run has one
+    let both = ok(&["summary", path(&run), path(&cartpole), "--last", "2"]);
+    let header = both.lines().next().expect("header");
+    assert!(header.ends_with("success(last 2)"), "{both}");
+    let cartpole_only = ok(&["summary", path(&cartpole), "--last", "2"]);
+    assert!(!cartpole_only.contains("success"), "{cartpole_only}");
 }
