@@ -30,9 +30,12 @@ pub struct EvalResult {
 impl EvalResult {
     /// The fraction of the judged episodes that ended in success; `None` when none was judged.
     pub fn success_rate(&self) -> Option<f64> {
-        let judged: Vec<bool> = self.success.iter().flatten().copied().collect();
-        (!judged.is_empty())
-            .then(|| judged.iter().filter(|&&s| s).count() as f64 / judged.len() as f64)
+        let (judged, succeeded) = self
+            .success
+            .iter()
+            .flatten()
+            .fold((0usize, 0usize), |(j, s), &ok| (j + 1, s + usize::from(ok)));
+        (judged > 0).then(|| succeeded as f64 / judged as f64)
     }
 }
 

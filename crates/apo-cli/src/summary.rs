@@ -88,35 +88,22 @@ fn cells(s: &RunSummary, with_success: bool) -> Vec<Option<String>> {
     cells
 }
 
-/// The column headers after `run`, in the words of [`table`] or the names of [`csv`].
-fn headers(last: usize, with_success: bool, csv: bool) -> Vec<String> {
-    let mut names: Vec<String> = if csv {
-        vec![
-            "epochs".into(),
-            "env_steps".into(),
-            "mean_all".into(),
-            format!("mean_last{last}"),
-            "worst_all".into(),
-            format!("worst_last{last}"),
-            "steps_per_s".into(),
-        ]
-    } else {
-        vec![
-            "epochs".into(),
-            "env steps".into(),
-            "mean(all)".into(),
-            format!("mean(last {last})"),
-            "worst(all)".into(),
-            format!("worst(last {last})"),
-            "steps/s".into(),
-        ]
-    };
+/// The column headers after `run`, each as (the words of [`table`], the name of [`csv`]).
+fn headers(last: usize, with_success: bool) -> Vec<(String, String)> {
+    let mut names = vec![
+        ("epochs".into(), "epochs".into()),
+        ("env steps".into(), "env_steps".into()),
+        ("mean(all)".into(), "mean_all".into()),
+        (format!("mean(last {last})"), format!("mean_last{last}")),
+        ("worst(all)".into(), "worst_all".into()),
+        (format!("worst(last {last})"), format!("worst_last{last}")),
+        ("steps/s".into(), "steps_per_s".into()),
+    ];
     if with_success {
-        names.push(if csv {
-            format!("success_last{last}")
-        } else {
-            format!("success(last {last})")
-        });
+        names.push((
+            format!("success(last {last})"),
+            format!("success_last{last}"),
+        ));
     }
     names
 }
@@ -133,7 +120,11 @@ fn any_success(rows: &[(String, RunSummary)]) -> bool {
 pub fn table(rows: &[(String, RunSummary)], last: usize) -> String {
     let with_success = any_success(rows);
     let header = std::iter::once("run".to_string())
-        .chain(headers(last, with_success, false))
+        .chain(
+            headers(last, with_success)
+                .into_iter()
+                .map(|(words, _)| words),
+        )
         .collect();
     let lines: Vec<Vec<String>> = std::iter::once(header)
         .chain(rows.iter().map(|(run, s)| {
@@ -171,11 +162,13 @@ pub fn table(rows: &[(String, RunSummary)], last: usize) -> String {
 pub fn csv(rows: &[(String, RunSummary)], last: usize) -> anyhow::Result<String> {
     let with_success = any_success(rows);
     let mut writer = ::csv::Writer::from_writer(Vec::new());
-    writer.write_record(std::iter::once("run".to_string()).chain(headers(
-        last,
-        with_success,
-        true,
-    )))?;
+    writer.write_record(
+        std::iter::once("run".to_string()).chain(
+            headers(last, with_success)
+                .into_iter()
+                .map(|(_, name)| name),
+        ),
+    )?;
     for (run, s) in rows {
         let values: Vec<String> = cells(s, with_success)
             .into_iter()
