@@ -2,9 +2,12 @@
 # Sets up apo on a fresh Debian (bookworm) machine and runs a small default job.
 #
 #   bash scripts/setup.sh              # install, build, train APO on Pendulum-v1, evaluate, plot
-#   bash scripts/setup.sh --deps-only  # install the Debian packages only (what CI does)
-#   bash scripts/setup.sh --mujoco3    # also fetch MuJoCo 3.17 into .cache/ for --features mujoco3
-#                                      # (CI: --deps-only --mujoco3)
+#   bash scripts/setup.sh --deps-only  # install the packages and assets only (what CI does)
+#
+# Either way it also fetches what `bash scripts/test.sh` needs beyond the packages: MuJoCo
+# 3.17 (`.cache/mujoco-3.17.0`, for the `mujoco3` feature the tests build with), the ALE source
+# archive and the Atari ROMs. (`--mujoco3`, which used to ask for MuJoCo 3.17, is still
+# accepted.)
 #
 # Installs (as root, or through sudo) the Debian packages the project needs:
 #   build-essential pkg-config   C toolchain for crates that build C
@@ -36,18 +39,19 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-# the ALE's source archive and the Atari ROMs, from PyPI (apo-atari; checksums checked)
-python3 scripts/atari_assets.py
-
 deps_only=false
 for arg in "$@"; do
   case "$arg" in
     --deps-only) deps_only=true ;;
-    # MuJoCo 3.17's library from the mujoco wheel on PyPI, for `--features mujoco3`
-    --mujoco3) python3 scripts/mujoco3_assets.py ;;
-    *) echo "error: unknown option $arg (options: --deps-only, --mujoco3)" >&2; exit 2 ;;
+    --mujoco3) ;;  # always fetched now
+    *) echo "error: unknown option $arg (options: --deps-only)" >&2; exit 2 ;;
   esac
 done
+
+# the ALE's source archive and the Atari ROMs, from PyPI (apo-atari; checksums checked)
+python3 scripts/atari_assets.py
+# MuJoCo 3.17's library from the mujoco wheel on PyPI (the tests build the `mujoco3` feature)
+python3 scripts/mujoco3_assets.py
 if $deps_only; then
   exit 0
 fi

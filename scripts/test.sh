@@ -1,17 +1,16 @@
 #!/usr/bin/env bash
 # The project's tests: formatting, lints (warnings are errors), every crate's tests, and the
 # examples of the training library run for a few hundred steps.
-# Needs rustfmt and clippy (rustup's default profile has both), the packages of
-# `scripts/setup.sh --deps-only` (Open MPI and libclang included) and MuJoCo 3.17 from
-# `scripts/setup.sh --mujoco3`.
+# Needs rustfmt and clippy (rustup's default profile has both) and the packages and assets
+# that `scripts/setup.sh` (or `--deps-only`) installs; MuJoCo 3.17 is fetched here when missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# MuJoCo 3.17 (`scripts/setup.sh --mujoco3`): every crate is tested with the `mujoco3` physics
-# built in, so the MuJoCo 2.2.2 tests also run beside MuJoCo 3 in one process.
+# MuJoCo 3.17: every crate is tested with the `mujoco3` physics built in, so the MuJoCo 2.2.2
+# tests also run beside MuJoCo 3 in one process.
 mujoco3="$PWD/.cache/mujoco-3.17.0/lib"
 if [ ! -e "$mujoco3/libmujoco.so" ]; then
-  echo "error: $mujoco3/libmujoco.so is missing: run 'bash scripts/setup.sh --deps-only --mujoco3'" >&2
-  exit 1
+  echo "== MuJoCo 3.17 is not in .cache/ yet: fetching it (scripts/mujoco3_assets.py)"
+  python3 scripts/mujoco3_assets.py
 fi
 export MUJOCO_DYNAMIC_LINK_DIR="$mujoco3"
 export LD_LIBRARY_PATH="$mujoco3${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"

@@ -13,7 +13,7 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp"));
+    let tmp = dir.join(temp_name(&name));
     {
         let mut file = std::fs::File::create(&tmp)?;
         file.write_all(bytes)?;
@@ -21,6 +21,11 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     }
     std::fs::rename(&tmp, path)?;
     sync_dir(dir)
+}
+
+/// The name of the temporary file [`write`] uses for a file named `name`.
+pub fn temp_name(name: &str) -> String {
+    format!(".{name}.tmp")
 }
 
 /// Syncs the file at `path` (its data and metadata) to the disk.

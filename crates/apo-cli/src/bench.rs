@@ -191,6 +191,17 @@ fn value_step<B: Backend>(
     median(times)
 }
 
+/// The memory [`policy_call_us`] allocates, in bytes (an upper estimate: the observations,
+/// the network with its Burn and host copies, the activations and the action buffers, f32,
+/// with a factor 2 for the allocator and copies).
+pub fn policy_call_bytes(obs_dim: usize, act_dim: usize, batch: usize) -> f64 {
+    let (obs, act, batch) = (obs_dim as f64, act_dim as f64, batch as f64);
+    let hidden = 64.0;
+    let params = obs * hidden + hidden * hidden + hidden * 2.0 * act + 2.0 * hidden + 2.0 * act;
+    let per_sample = obs + 2.0 * hidden + 4.0 * act;
+    2.0 * 4.0 * (3.0 * params + batch * per_sample)
+}
+
 /// Microseconds per host policy call for a batch of `batch` observations.
 pub fn policy_call_us(obs_dim: usize, action: ActionKind, batch: usize, calls: usize) -> f64 {
     let family = MlpPolicyConfig::new(obs_dim, action);
@@ -240,7 +251,7 @@ pub fn epoch(config: &crate::RunConfig, threads: usize) -> anyhow::Result<Vec<Ep
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.subsec_nanos());
     let dir = std::env::temp_dir().join(format!("apo-bench-epoch-{}-{nanos}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
+    let prepared = crate::run_dir::NewRunDir::prepare(&dir, false)?;
     let stop = AtomicBool::new(false);
     let trained = match config.backend {
         crate::BackendKind::Cpu => crate::trainer::train::<burn::backend::NdArray>(
@@ -261,7 +272,7 @@ pub fn epoch(config: &crate::RunConfig, threads: usize) -> anyhow::Result<Vec<Ep
         ),
     };
     let rows = trained.and_then(|_| crate::progress::read(&dir.join(crate::run_dir::PROGRESS)));
-    let _ = std::fs::remove_dir_all(&dir);
+    prepared.discard();
     let rows = rows?;
     let mut previous = (0.0, 0u64);
     Ok(rows

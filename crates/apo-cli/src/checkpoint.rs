@@ -32,7 +32,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::atomic;
 
-/// The checkpoint format this version writes (format 1 had no manifest; it is still read).
+/// The checkpoint format this version writes (format 1 had no manifest; it is still read,
+/// with a warning; a format-2 checkpoint without its manifest is refused).
 const FORMAT: u32 = 2;
 
 /// The network and optimizer files of a checkpoint (Burn adds `.mpk`).
@@ -200,27 +201,98 @@ pub fn save<B: Backend>(
         .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
 
     let (latest, previous) = (root.join("latest"), root.join("previous"));
-    if previous.exists() {
-        std::fs::remove_dir_all(&previous)?;
-    }
+    clear(&previous)?;
     if latest.exists() {
         std::fs::rename(&latest, &previous)?;
     }
     std::fs::rename(&tmp, &latest)?;
     atomic::sync_dir(&root)?;
-    if previous.exists() {
-        std::fs::remove_dir_all(&previous)?;
-    }
+    clear(&previous)?;
     if keep {
         let kept = root.join(kept_name(state.run.epoch));
         let tmp = root.join(format!(".tmp-keep-{}", state.run.epoch));
         write_into(&tmp, learner, state, shapes)?;
-        if kept.exists() {
-            std::fs::remove_dir_all(&kept)?;
-        }
+        clear(&kept)?;
         std::fs::rename(&tmp, &kept)?;
         atomic::sync_dir(&root)?;
     }
+    Ok(())
+}
+
+/// The files a checkpoint folder consists of (with the temporary names of those written
+/// atomically): the only files apo removes from one.
+fn checkpoint_files() -> Vec<String> {
+    let mut files: Vec<String> = RECORDS.iter().map(|r| format!("{r}.mpk")).collect();
+    for name in [STATE, MANIFEST] {
+        files.push(name.to_string());
+        files.push(atomic::temp_name(name));
+    }
+    files
+}
+
+/// Whether `name` is a checkpoint folder apo names in `checkpoints/`: `latest`, `previous`,
+/// `epoch-<N>`, or a temporary `.tmp-<N>` / `.tmp-keep-<N>`.
+fn is_checkpoint_name(name: &str) -> bool {
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    matches!(name, "latest" | "previous")
+        || name.strip_prefix("epoch-").is_some_and(digits)
+        || name.strip_prefix(".tmp-keep-").is_some_and(digits)
+        || name.strip_prefix(".tmp-").is_some_and(digits)
+}
+
+/// Empties the checkpoint folder `path` of a checkpoint's files and removes it. Files apo did
+/// not write there are never removed: the folder is then moved aside (`<name>.kept-<N>`, with
+/// a warning) so that its name is free for the new checkpoint.
+fn clear(path: &Path) -> anyhow::Result<()> {
+    if std::fs::symlink_metadata(path).is_err() {
+        return Ok(());
+    }
+    let left = crate::run_dir::remove_created(path, &checkpoint_files(), true)?;
+    if left.is_empty() {
+        return Ok(());
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let aside = (1..)
+        .map(|n| atomic::parent(path).join(format!("{name}.kept-{n}")))
+        .find(|p| std::fs::symlink_metadata(p).is_err())
+        .unwrap_or_else(|| path.with_extension("kept"));
+    std::fs::rename(path, &aside)
+        .with_context(|| format!("cannot move {} aside", path.display()))?;
+    tracing::warn!(
+        folder = %path.display(),
+        moved_to = %aside.display(),
+        files = ?left,
+        "a checkpoint folder held files apo did not write; they were kept"
+    );
+    eprintln!(
+        "warning: {} held files apo did not write ({}); kept them in {}",
+        path.display(),
+        left.join(", "),
+        aside.display()
+    );
+    Ok(())
+}
+
+/// Removes every checkpoint apo wrote in the folder `root` (a run's `checkpoints/`) and
+/// `root` itself when nothing else is in it; anything else is kept.
+///
+/// # Errors
+/// When a checkpoint file cannot be removed.
+pub fn remove_checkpoints(root: &Path) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return Ok(());
+    };
+    let files = checkpoint_files();
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if is_checkpoint_name(&name) && entry.file_type().is_ok_and(|t| t.is_dir()) {
+            crate::run_dir::remove_created(&entry.path(), &files, true)?;
+        }
+    }
+    crate::run_dir::remove_created(root, &[], true)?;
     Ok(())
 }
 
@@ -231,9 +303,7 @@ fn write_into<B: Backend>(
     state: &TrainState,
     shapes: &Shapes,
 ) -> anyhow::Result<()> {
-    if tmp.exists() {
-        std::fs::remove_dir_all(tmp)?;
-    }
+    clear(tmp)?;
     std::fs::create_dir_all(tmp)?;
     let (policy, value) = learner.networks();
     let (policy_optim, value_optim) = learner.optimizers();
@@ -307,6 +377,22 @@ pub fn locate(run: &Path, which: &Which) -> anyhow::Result<Option<PathBuf>> {
     }
 }
 
+/// The epoch of `run`'s latest checkpoint (`None` without one), read from its `state.json`
+/// (the networks are not loaded).
+///
+/// # Errors
+/// A checkpoint whose state cannot be read.
+pub fn latest_epoch(run: &Path) -> anyhow::Result<Option<usize>> {
+    let Some(from) = locate(run, &Which::Latest)? else {
+        return Ok(None);
+    };
+    let path = from.join(STATE);
+    let text = crate::input::read_text(&path, "checkpoint state", crate::input::SMALL_FILE * 64)?;
+    let state: TrainState = serde_json::from_str(&text)
+        .with_context(|| format!("{} is corrupt or not a checkpoint state", path.display()))?;
+    Ok(Some(state.run.epoch))
+}
+
 /// Loads checkpoint `from` (a directory from [`locate`]) into `learner` after checking its
 /// files against their manifest and its shapes against `shapes`; returns its counters.
 pub fn load<B: Backend>(
@@ -316,10 +402,14 @@ pub fn load<B: Backend>(
     device: &B::Device,
 ) -> anyhow::Result<TrainState> {
     let state_path = from.join(STATE);
-    let text = std::fs::read_to_string(&state_path)
-        .with_context(|| format!("cannot read {}", state_path.display()))?;
+    let text = crate::input::read_text(
+        &state_path,
+        "checkpoint state",
+        crate::input::SMALL_FILE * 64,
+    )?;
     let manifest_path = from.join(MANIFEST);
-    if manifest_path.exists() {
+    let has_manifest = std::fs::symlink_metadata(&manifest_path).is_ok();
+    if has_manifest {
         verify(from, shapes)?;
     }
     let state: TrainState = serde_json::from_str(&text).with_context(|| {
@@ -329,7 +419,13 @@ pub fn load<B: Backend>(
         )
     })?;
     match state.format {
-        FORMAT => {}
+        FORMAT if has_manifest => {}
+        FORMAT => bail!(
+            "{} is missing: a format-{FORMAT} checkpoint is verified against it, and without it a corrupt file \
+             would go unnoticed; the checkpoint in {} cannot be used",
+            manifest_path.display(),
+            from.display()
+        ),
         1 => {
             tracing::warn!(checkpoint = %from.display(), "format-1 checkpoint without checksums; loading it unverified")
         }
@@ -416,16 +512,35 @@ pub fn load<B: Backend>(
         ),
     }
     learner.restore(policy, value, policy_optim, value_optim);
+    for (what, params) in [
+        ("policy", learner.policy_params()),
+        ("value", learner.value_params()),
+    ] {
+        if let Some(i) = params.iter().position(|p| !p.is_finite()) {
+            bail!(
+                "{} holds a non-finite {what} parameter (index {i}: {}); the checkpoint in {} cannot be used",
+                from.join(format!("{what}.mpk")).display(),
+                params[i],
+                from.display()
+            );
+        }
+    }
     Ok(state)
 }
 
 /// Checks every file of checkpoint `from` against its manifest, and the shapes.
 fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
     let path = from.join(MANIFEST);
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
+    let text = crate::input::read_text(&path, "checkpoint manifest", crate::input::SMALL_FILE)?;
     let manifest: Manifest = serde_json::from_str(&text)
         .with_context(|| format!("{} is corrupt (not a checkpoint manifest)", path.display()))?;
+    if manifest.format != FORMAT {
+        bail!(
+            "{} is of manifest format {}; this version reads format {FORMAT}",
+            path.display(),
+            manifest.format
+        );
+    }
     for name in RECORDS
         .iter()
         .map(|r| format!("{r}.mpk"))
@@ -438,10 +553,19 @@ fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
                 path.display()
             );
         };
-        if !file.exists() {
+        if std::fs::symlink_metadata(&file).is_err() {
             bail!("{} is missing from the checkpoint", file.display());
         }
-        let found = file_sum(&file)?;
+        // a regular file of the listed size before it is read (bounded, and never a FIFO)
+        let size = crate::input::check_file(&file, "checkpoint file", u64::MAX)?;
+        let found = if size == expected.bytes {
+            file_sum(&file)?
+        } else {
+            FileSum {
+                bytes: size,
+                crc32c: "(not read)".to_string(),
+            }
+        };
         if &found != expected {
             bail!(
                 "{} is corrupt: {} bytes with CRC-32C {}, the checkpoint's manifest says {} bytes with CRC-32C {}",

@@ -85,14 +85,9 @@ pub struct RunConfig {
 /// A configuration error; the message names the key.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigFileError {
-    /// The file could not be read.
-    #[error("cannot read config file {path}: {source}")]
-    Read {
-        /// The path.
-        path: String,
-        /// The I/O error.
-        source: std::io::Error,
-    },
+    /// The file could not be read (a missing file, a folder, a pipe, a file too large).
+    #[error("{0}")]
+    Read(String),
     /// The TOML does not parse.
     #[error("config {origin} is not valid TOML: {message}")]
     Parse {
@@ -234,7 +229,11 @@ impl RunConfig {
     ) -> Result<Self, ConfigFileError> {
         let mut doc = to_table(&Self::defaults(algo, env));
         if let Some(path) = file {
-            merge(&mut doc, migrate_legacy(read_table(path)?), "")?;
+            let table = migrate_legacy(read_table(path)?);
+            if has_several_sections(&table) {
+                section_algorithm(&table, &path.display().to_string())?;
+            }
+            merge(&mut doc, table, "")?;
         }
         for (key, value) in preset.map(|p| p.settings(algo, env)).unwrap_or_default() {
             let key = in_section(key, algo);
@@ -312,8 +311,8 @@ impl RunConfig {
         observation_dim: usize,
         action: ActionKind,
     ) -> Result<(), apo_core::ConfigError> {
-        let need = memory_estimate(self, observation_dim, action);
-        let have = physical_memory().unwrap_or(MEMORY_WITHOUT_PROC);
+        let need = memory_estimate(self, observation_dim, action, self.env_bytes());
+        let have = crate::input::physical_memory();
         if need > have as f64 {
             return Err(apo_core::ConfigError {
                 field: "steps_per_epoch, num_envs, hidden".into(),
@@ -341,7 +340,7 @@ impl RunConfig {
 pub const KEY_DOCS: &[(&str, &str)] = &[
     ("env", "environment name (see `apo list`)"),
     ("seed", "seed of everything random in the run; 0..=9223372036854775807"),
-    ("epochs", "number of epochs (paper: 200 continuous, 500 Atari); ≥ 1"),
+    ("epochs", "number of epochs (paper: 200 continuous, 500 Atari); 1..=1000000000"),
     ("steps_per_epoch", "environment steps collected per epoch (paper: 30000); num_envs..=100000000"),
     ("num_envs", "environments stepped together, the epoch's steps split between them; 1..=65536"),
     ("normalize_obs", "normalize observations with running statistics (saved in checkpoints); true/false"),
@@ -420,8 +419,37 @@ fn write_documented(table: &toml::Table, prefix: &str, algo: &AlgoConfig, out: &
 }
 
 const GIB: f64 = (1u64 << 30) as f64;
-/// Assumed memory where `/proc/meminfo` cannot be read.
-const MEMORY_WITHOUT_PROC: u64 = 64 << 30;
+
+/// The memory one environment is assumed to take when a run has few of them: 8 MiB, above
+/// every task's measured figure (Humanoid 2.3 MiB, the hands 3.6, Goal_Ant 4.3).
+const ENV_BYTES_BOUND: f64 = (8u64 << 20) as f64;
+
+/// Runs with more environments than this measure what one of theirs takes.
+const MEASURE_ENVS_ABOVE: usize = 128;
+
+impl RunConfig {
+    /// The memory one environment of the run takes, in bytes: [`ENV_BYTES_BOUND`] for a run of
+    /// at most [`MEASURE_ENVS_ABOVE`] environments; for more, measured by making three of them
+    /// (the growth of this process's virtual memory per environment after the first, × 1.25;
+    /// MuJoCo's model and `mjData` arena are most of it).
+    pub fn env_bytes(&self) -> f64 {
+        if self.train.num_envs <= MEASURE_ENVS_ABOVE {
+            return ENV_BYTES_BOUND;
+        }
+        let options = self.train.make_options();
+        let measured = (|| {
+            let _warm = apo_envs::make_with(&self.train.env, &options).ok()?;
+            let before = crate::input::virtual_memory()?;
+            let _more: Vec<_> = (0..2)
+                .map(|_| apo_envs::make_with(&self.train.env, &options).ok())
+                .collect::<Option<_>>()?;
+            let after = crate::input::virtual_memory()?;
+            Some(after.saturating_sub(before) as f64 / 2.0 * 1.25)
+        })();
+        // never below 1 MiB: allocator reuse can hide part of an environment
+        measured.map_or(ENV_BYTES_BOUND, |b| b.max((1u64 << 20) as f64))
+    }
+}
 
 /// An upper estimate, in bytes, of what a run of `config` allocates on an environment with
 /// `observation_dim` observations and `action`:
@@ -431,8 +459,13 @@ const MEMORY_WITHOUT_PROC: u64 = 64 << 30;
 /// - per sample of the epoch, the stored transition three times (rollout buffer, batch, backend
 ///   tensors; f32) and 48 bytes per hidden unit (activations, their gradients and the second
 ///   backward pass of the Hessian-vector product);
-/// - per environment, 1 MiB (MuJoCo's model data and arena).
-pub fn memory_estimate(config: &RunConfig, observation_dim: usize, action: ActionKind) -> f64 {
+/// - per environment, `env_bytes` ([`RunConfig::env_bytes`]: MuJoCo's model, data and arena).
+pub fn memory_estimate(
+    config: &RunConfig,
+    observation_dim: usize,
+    action: ActionKind,
+    env_bytes: f64,
+) -> f64 {
     let dist = match action {
         ActionKind::Continuous { dim } => 2 * dim,
         ActionKind::Discrete { n } => n,
@@ -451,17 +484,7 @@ pub fn memory_estimate(config: &RunConfig, observation_dim: usize, action: Actio
         * config.train.num_envs as f64;
     let transition = (observation_dim as f64 + action.width() as f64 + dist + 5.0) * 4.0 * 3.0;
     let activations = config.train.hidden.iter().sum::<usize>() as f64 * 48.0;
-    params * 128.0
-        + samples * (transition + activations)
-        + config.train.num_envs as f64 * (1u64 << 20) as f64
-}
-
-/// This machine's physical memory in bytes (`MemTotal` of `/proc/meminfo`).
-fn physical_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    params * 128.0 + samples * (transition + activations) + config.train.num_envs as f64 * env_bytes
 }
 
 fn to_table<T: Serialize>(value: &T) -> toml::Table {
@@ -630,14 +653,29 @@ fn section_algorithm(table: &toml::Table, origin: &str) -> Result<Algorithm, Con
 /// The algorithm of the config file `path` when it has an `[algo.<name>]` section.
 pub fn file_algorithm(path: &Path) -> Result<Option<Algorithm>, ConfigFileError> {
     let table = migrate_legacy(read_table(path)?);
-    Ok(section_algorithm(&table, &path.display().to_string()).ok())
+    match section_algorithm(&table, &path.display().to_string()) {
+        Ok(algo) => Ok(Some(algo)),
+        Err(e) if has_several_sections(&table) => Err(e),
+        Err(_) => Ok(None),
+    }
+}
+
+/// Whether `table` holds the sections of more than one algorithm.
+fn has_several_sections(table: &toml::Table) -> bool {
+    match table.get("algo") {
+        Some(toml::Value::Table(algo)) => {
+            algo.keys()
+                .filter(|k| k.parse::<Algorithm>().is_ok())
+                .count()
+                > 1
+        }
+        _ => false,
+    }
 }
 
 fn read_table(path: &Path) -> Result<toml::Table, ConfigFileError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigFileError::Read {
-        path: path.display().to_string(),
-        source,
-    })?;
+    let text = crate::input::read_text(path, "config file", crate::input::SMALL_FILE)
+        .map_err(|e| ConfigFileError::Read(format!("{e:#}")))?;
     text.parse()
         .map_err(|e: toml::de::Error| ConfigFileError::Parse {
             origin: path.display().to_string(),
@@ -720,7 +758,7 @@ fn set_path(doc: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), 
 }
 
 /// A `--set` value: TOML syntax (`0.99`, `true`, `[64, 64]`, `"x"`), or a bare string.
-fn parse_value(text: &str) -> toml::Value {
+pub fn parse_value(text: &str) -> toml::Value {
     format!("v = {text}")
         .parse::<toml::Table>()
         .ok()
@@ -981,7 +1019,7 @@ mod tests {
         let action = ActionKind::Continuous { dim: 3 };
         let paper = RunConfig::defaults(Algorithm::Apo, "Hopper");
         // the paper's Hopper run: ~10 k parameters, 30 000 samples of 11 + 3 + 6 floats
-        let estimate = memory_estimate(&paper, 11, action);
+        let estimate = memory_estimate(&paper, 11, action, paper.env_bytes());
         assert!(
             estimate > 30_000.0 * 128.0 * 48.0 && estimate < 1e9,
             "{estimate}"

@@ -6,6 +6,7 @@ pub mod bench;
 pub mod checkpoint;
 pub mod config;
 pub mod eval;
+pub mod input;
 #[cfg(feature = "mpi")]
 pub mod mpi;
 pub mod plot;

@@ -155,7 +155,8 @@ impl Run {
     fn load(dir: &Path, smooth: usize, column_name: Option<&str>) -> anyhow::Result<Self> {
         let context = || format!("cannot plot the run in {}", dir.display());
         let config = RunConfig::load(&dir.join("config.toml")).with_context(context)?;
-        let rows = progress::read(&dir.join("progress.csv")).with_context(context)?;
+        let rows = progress::read_rows_with_non_finite(&dir.join(crate::run_dir::PROGRESS))
+            .with_context(context)?;
         if let Some(name) = column_name {
             let (values, skipped) = named_column(&rows, name, smooth)
                 .with_context(|| format!("run {}", dir.display()))?;
@@ -208,7 +209,7 @@ impl Run {
         let runs = dirs
             .iter()
             .map(|dir| {
-                progress::read(&dir.join("progress.csv"))
+                progress::read_rows_with_non_finite(&dir.join(crate::run_dir::PROGRESS))
                     .with_context(|| format!("cannot plot the run in {}", dir.display()))
             })
             .collect::<anyhow::Result<Vec<_>>>()?;

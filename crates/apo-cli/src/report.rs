@@ -45,8 +45,9 @@ pub struct Stat {
 impl Stat {
     /// The statistic of `values`; `None` when empty.
     pub fn of(values: &[f64]) -> Option<Self> {
+        let values: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
         (!values.is_empty()).then(|| {
-            let (mean, std) = mean_std(values);
+            let (mean, std) = mean_std(&values);
             Self {
                 mean,
                 std,
@@ -84,6 +85,8 @@ pub struct GroupReport {
     pub variant: String,
     /// The group's run directories.
     pub runs: Vec<PathBuf>,
+    /// How many of them have not reached their config's epochs (included, and marked).
+    pub incomplete: usize,
     /// Average mean return over all epochs.
     pub mean_all: Option<Stat>,
     /// Average mean return over the last N epochs.
@@ -141,8 +144,29 @@ fn normalized_score(agent: f64, trpo: f64, random: f64) -> Option<f64> {
     Some(apo_core::metrics::normalized_score(agent, trpo, random)).filter(|s| s.is_finite())
 }
 
+/// `paths` with each directory once, by its canonical path, in the order given (a run named
+/// twice, e.g. as `runs/a` and `runs/./a`, is counted once, with a note). A path that does not
+/// exist is kept as it is, for its reader to name.
+///
+/// # Errors
+/// None so far; the signature leaves room for checks that can fail.
+pub fn distinct_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut seen = std::collections::BTreeSet::new();
+    let mut runs = Vec::new();
+    for path in paths {
+        let canonical = std::fs::canonicalize(path).unwrap_or_else(|_| path.clone());
+        if seen.insert(canonical) {
+            runs.push(path.clone());
+        } else {
+            eprintln!("note: {} is listed twice; it counts once", path.display());
+        }
+    }
+    Ok(runs)
+}
+
 /// The run directories among `paths`: a path that is a run directory, or, for a folder that
-/// is not, the run directories directly inside it (a sweep's folder), sorted.
+/// is not, the run directories directly inside it (a sweep's folder), sorted; each run once
+/// (see [`distinct_runs`]).
 ///
 /// # Errors
 /// A path that does not exist or holds no run.
@@ -169,7 +193,7 @@ pub fn find_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
         inside.sort();
         runs.extend(inside);
     }
-    Ok(runs)
+    distinct_runs(&runs)
 }
 
 /// The variant of a run directory named `name` of `algo` on `env` (see the module's
@@ -213,9 +237,11 @@ pub fn report(
 ) -> anyhow::Result<Report> {
     let mut groups: BTreeMap<(String, String, String), (Algorithm, Vec<PathBuf>)> = BTreeMap::new();
     let mut options = BTreeMap::new();
+    let mut targets = BTreeMap::new();
     for dir in runs {
         let config = RunConfig::load(&dir.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", dir.display()))?;
+        targets.insert(dir.clone(), config.train.epochs);
         options
             .entry(config.train.env.clone())
             .or_insert(apo_envs::MakeOptions {
@@ -236,9 +262,13 @@ pub fn report(
     let mut reports = Vec::new();
     for ((env, _, variant), (algo, dirs)) in groups {
         let mut columns: [Vec<f64>; 6] = Default::default();
+        let mut incomplete = 0;
         for dir in &dirs {
-            let rows = progress::read(&dir.join(run_dir::PROGRESS))
+            let rows = progress::read_rows(&dir.join(run_dir::PROGRESS))
                 .with_context(|| format!("run {}", dir.display()))?;
+            if rows.last().map_or(0, |r| r.epoch) < targets.get(dir).copied().unwrap_or(0) {
+                incomplete += 1;
+            }
             let s = summarize_rows(&rows, last);
             let bound = last_average(&rows, |r| r.bound, last);
             let confidence = last_average(&rows, |r| r.confidence, last);
@@ -260,6 +290,7 @@ pub fn report(
             algo,
             variant,
             runs: dirs,
+            incomplete,
             mean_all,
             mean_last,
             worst_all,
@@ -448,10 +479,15 @@ pub fn markdown(report: &Report) -> String {
                     }
                 })
                 .collect();
+            let seeds = if g.incomplete > 0 {
+                format!("{} ({} incomplete)", g.runs.len(), g.incomplete)
+            } else {
+                g.runs.len().to_string()
+            };
             out.push_str(&format!(
                 "| {} | {} | {} | {} | {} | {} | {} |\n",
                 g.label(),
-                g.runs.len(),
+                seeds,
                 cells.join(" | "),
                 stat_cell(g.bound_last),
                 g.confidence_last
@@ -488,6 +524,7 @@ pub fn csv(report: &Report) -> anyhow::Result<String> {
         "algo".into(),
         "variant".into(),
         "seeds".into(),
+        "incomplete".into(),
     ];
     for m in [
         "mean_all",
@@ -514,6 +551,7 @@ pub fn csv(report: &Report) -> anyhow::Result<String> {
             g.algo.name().to_string(),
             g.variant.clone(),
             g.runs.len().to_string(),
+            g.incomplete.to_string(),
         ];
         for s in [
             g.mean_all,

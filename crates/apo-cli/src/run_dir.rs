@@ -1,11 +1,21 @@
 //! Run directories: the files apo writes into one, the lock that keeps two trainings out of
-//! the same directory, and `--force`, which replaces a run but never anything apo did not make.
+//! the same directory, and the one place where apo removes files.
 //!
-//! A run directory is one whose `config.toml` is a valid run configuration. Inside it apo
-//! owns `config.toml`, `progress.csv`, `train.log`, `apo.lock`, `checkpoints/`, TensorBoard's
-//! `events.out.tfevents.*` files and its own temporary files (`.<name>.tmp`); everything
-//! else (a plot the user wrote there, notes) is left alone, even by `--force`.
+//! **Ownership.** apo removes only what it can prove it created. A run directory holds a
+//! marker, `.apo-run`, listing the entries apo created in it (`config.toml`, `progress.csv`,
+//! `train.log`, `apo.lock`, `checkpoints`, TensorBoard's `events.out.tfevents.*` files); an
+//! entry is listed only when apo created it, never when it was there before. Inside
+//! `checkpoints/` apo owns the checkpoint folders it names (`latest`, `previous`,
+//! `epoch-<N>`, `.tmp-*`) and, inside them, the files a checkpoint consists of. Every removal
+//! goes through [`remove_created`]: it deletes the named *files* (never a directory with what
+//! is in it) and removes a folder only once it is empty, so a user's file anywhere under a run
+//! directory survives `--force`, a failed start, a sweep re-run and checkpoint rotation.
+//!
+//! A directory is a run directory for `--force` only with the marker; `--resume` also takes a
+//! run written before the marker existed (one with a checkpoint), and `apo report`/`summary`
+//! read any directory with a valid `config.toml`.
 
+use std::collections::BTreeSet;
 use std::fs::{File, OpenOptions, TryLockError};
 use std::io::{Read, Seek, Write};
 use std::path::{Path, PathBuf};
@@ -32,19 +42,170 @@ pub const LOCK: &str = "apo.lock";
 pub const CHECKPOINTS: &str = "checkpoints";
 /// TensorBoard event files start with this.
 pub const EVENTS_PREFIX: &str = "events.out.tfevents.";
+/// The marker of a run directory: the entries apo created in it, one per line.
+pub const MARKER: &str = ".apo-run";
 
-/// Whether apo made the entry `name` of a run directory.
-fn is_run_entry(name: &str) -> bool {
-    matches!(name, CONFIG | PROGRESS | LOG | LOCK | CHECKPOINTS)
-        || name.starts_with(EVENTS_PREFIX)
-        || [CONFIG, PROGRESS, LOG]
-            .iter()
-            .any(|f| name == format!(".{f}.tmp"))
+const MARKER_HEADER: &str =
+    "# apo run directory: the entries apo created here, the only ones it will ever remove";
+
+/// The names apo gives its files in a run directory (a file of one of these names that apo
+/// did not create blocks `--force`: the new run would overwrite it).
+const FIXED: [&str; 4] = [CONFIG, PROGRESS, LOG, CHECKPOINTS];
+
+/// The entries listed in `dir`'s marker; `None` when `dir` has no marker.
+///
+/// # Errors
+/// A marker that cannot be read.
+pub fn created_entries(dir: &Path) -> anyhow::Result<Option<BTreeSet<String>>> {
+    let path = dir.join(MARKER);
+    if std::fs::symlink_metadata(&path).is_err() {
+        return Ok(None);
+    }
+    let text = crate::input::read_text(&path, "the run directory's marker", 1 << 20)?;
+    Ok(Some(
+        text.lines()
+            .map(str::trim)
+            .filter(|l| !l.is_empty() && !l.starts_with('#'))
+            // names only: a listed path never leads out of the directory
+            .filter(|l| !l.contains(['/', '\\']) && *l != "." && *l != "..")
+            .map(str::to_string)
+            .collect(),
+    ))
+}
+
+fn write_marker(dir: &Path, entries: &BTreeSet<String>) -> anyhow::Result<()> {
+    let mut text = format!("{MARKER_HEADER}\n");
+    for e in entries {
+        text.push_str(e);
+        text.push('\n');
+    }
+    let path = dir.join(MARKER);
+    crate::atomic::write(&path, text.as_bytes())
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Records in `dir`'s marker that apo created the entry `name` (creating the marker when it
+/// is missing). Call it only for an entry this process made.
+///
+/// # Errors
+/// When the marker cannot be read or written.
+pub fn claim(dir: &Path, name: &str) -> anyhow::Result<()> {
+    let mut entries = created_entries(dir)?.unwrap_or_default();
+    if entries.insert(name.to_string()) || !dir.join(MARKER).exists() {
+        write_marker(dir, &entries)?;
+    }
+    Ok(())
+}
+
+/// [`claim`]s each of `names` that does not exist in `dir` yet (call it before creating them;
+/// an entry that is already there was not made by this call and is not claimed).
+///
+/// # Errors
+/// When the marker cannot be read or written.
+pub fn claim_new(dir: &Path, names: &[&str]) -> anyhow::Result<()> {
+    let mut entries = created_entries(dir)?.unwrap_or_default();
+    let before = entries.len();
+    for name in names {
+        if std::fs::symlink_metadata(dir.join(name)).is_err() {
+            entries.insert((*name).to_string());
+        }
+    }
+    if entries.len() != before || !dir.join(MARKER).exists() {
+        write_marker(dir, &entries)?;
+    }
+    Ok(())
 }
 
 /// Whether `dir` is a run directory (its `config.toml` is a valid run configuration).
 pub fn is_run_dir(dir: &Path) -> bool {
     RunConfig::load(&dir.join(CONFIG)).is_ok()
+}
+
+/// Checks that `dir` holds a run that `--resume` may continue: a valid `config.toml` and either
+/// apo's marker or (a run from before the marker) a checkpoint. A folder that merely holds a
+/// `config.toml` (from `apo config > dir/config.toml`) is not one.
+///
+/// # Errors
+/// Naming `dir` and what is missing.
+pub fn check_resumable(dir: &Path) -> anyhow::Result<RunConfig> {
+    let config = RunConfig::load(&dir.join(CONFIG))
+        .with_context(|| format!("{} is not a run directory", dir.display()))?;
+    let legacy = dir.join(CHECKPOINTS).join("latest").is_dir()
+        || dir.join(CHECKPOINTS).join("previous").is_dir();
+    if created_entries(dir)?.is_none() && !legacy {
+        bail!(
+            "{} is not a run directory of apo: it has a {CONFIG} but neither apo's marker {MARKER} nor a checkpoint; \
+             start a run with `apo train --config {} --out <new folder>`",
+            dir.display(),
+            dir.join(CONFIG).display()
+        );
+    }
+    Ok(config)
+}
+
+/// Removes the files `names` from `dir` (a name that is missing is skipped; a directory of
+/// that name is left alone unless it is empty), then `dir` itself when `remove_dir` and it is
+/// empty. Returns the entries left in `dir`. This is the only function through which apo
+/// deletes anything: it never removes a folder with something in it.
+///
+/// # Errors
+/// When a file exists but cannot be removed.
+pub fn remove_created(
+    dir: &Path,
+    names: &[String],
+    remove_dir: bool,
+) -> anyhow::Result<Vec<String>> {
+    for name in names {
+        let path = dir.join(name);
+        let Ok(meta) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        if meta.is_dir() {
+            // only an empty one; what is inside was not listed
+            let _ = std::fs::remove_dir(&path);
+        } else {
+            std::fs::remove_file(&path)
+                .with_context(|| format!("cannot remove {}", path.display()))?;
+        }
+    }
+    let left = match entry_names(dir) {
+        Ok(left) => left,
+        Err(_) => return Ok(Vec::new()),
+    };
+    if remove_dir && left.is_empty() {
+        std::fs::remove_dir(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    Ok(left)
+}
+
+/// Removes what apo created in the run directory `dir` (the entries of its marker, the
+/// checkpoints apo wrote in `checkpoints/`, apo's temporary files) and the marker. The lock
+/// file stays while it is held (a new process could otherwise lock a new file beside it):
+/// with `released`, the lock is no longer held and goes too. With `remove_dir`, `dir` goes
+/// as well when nothing else is left. Returns the entries kept because apo did not create
+/// them.
+///
+/// # Errors
+/// When a file apo created cannot be removed.
+pub fn remove_run_files(
+    dir: &Path,
+    released: bool,
+    remove_dir: bool,
+) -> anyhow::Result<Vec<String>> {
+    let listed = created_entries(dir)?.unwrap_or_default();
+    if listed.contains(CHECKPOINTS) {
+        crate::checkpoint::remove_checkpoints(&dir.join(CHECKPOINTS))?;
+    }
+    let mut names: Vec<String> = Vec::new();
+    for name in listed.iter().filter(|n| released || n.as_str() != LOCK) {
+        names.push(name.clone());
+        names.push(crate::atomic::temp_name(name));
+    }
+    names.push(crate::atomic::temp_name(MARKER));
+    names.push(MARKER.to_string());
+    let mut left = remove_created(dir, &names, remove_dir)?;
+    left.retain(|n| n != LOCK);
+    Ok(left)
 }
 
 /// An exclusive lock on a run directory, held while it lives (an OS file lock on
@@ -104,13 +265,16 @@ pub struct NewRunDir {
 
 impl NewRunDir {
     /// Prepares `dir` for a new run: creates it, or takes an empty existing one, or with
-    /// `force` empties an existing *run directory* of apo's files (anything else in it is
-    /// kept and listed on stderr). Refuses a non-empty directory without `force`, and
-    /// anything that is not a run directory even with it; nothing is touched then.
+    /// `force` removes what apo created in an existing *run directory* (one with apo's marker;
+    /// anything else in it is kept and listed on stderr). Refuses a non-empty directory
+    /// without `force`, and with it a folder without the marker or one where a file of an apo
+    /// name (`config.toml`, `progress.csv`, `train.log`, `checkpoints`) was not made by apo;
+    /// nothing is touched then.
     pub fn prepare(dir: &Path, force: bool) -> anyhow::Result<Self> {
-        if !dir.exists() {
+        if std::fs::symlink_metadata(dir).is_err() {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("cannot create {}", dir.display()))?;
+            claim_new(dir, &[LOCK])?;
             let lock = RunLock::acquire(dir)?;
             return Ok(Self {
                 dir: dir.to_path_buf(),
@@ -125,7 +289,8 @@ impl NewRunDir {
             );
         }
         let entries = entry_names(dir)?;
-        if entries.iter().all(|n| n == LOCK) {
+        if entries.iter().all(|n| n == LOCK || n == MARKER) {
+            claim_new(dir, &[LOCK])?;
             let lock = RunLock::acquire(dir)?;
             return Ok(Self {
                 dir: dir.to_path_buf(),
@@ -140,33 +305,37 @@ impl NewRunDir {
                 dir.display()
             );
         }
-        if !is_run_dir(dir) {
+        let Some(listed) = created_entries(dir)? else {
             bail!(
-                "--force replaces only a run directory of apo (one with a valid {CONFIG}), and {} is not one \
+                "--force replaces only a run directory that apo made (one with its marker {MARKER}), and {} is not one \
                  ({} entries, e.g. `{}`); nothing in it was touched — choose another --out",
                 dir.display(),
                 entries.len(),
                 entries.first().map_or("", String::as_str)
             );
+        };
+        let foreign: Vec<&str> = FIXED
+            .into_iter()
+            .filter(|n| !listed.contains(*n) && std::fs::symlink_metadata(dir.join(n)).is_ok())
+            .collect();
+        if !foreign.is_empty() {
+            bail!(
+                "--force: {} holds {} that apo did not create (not listed in {MARKER}); the new run would overwrite it. \
+                 Nothing was touched: move it away or choose another --out",
+                dir.display(),
+                foreign.join(", ")
+            );
         }
         let lock = RunLock::acquire(dir)?;
-        let mut kept = Vec::new();
-        for name in entries {
-            if name == LOCK {
-                continue;
-            }
-            if !is_run_entry(&name) {
-                kept.push(name);
-                continue;
-            }
-            let path = dir.join(&name);
-            let removed = if path.is_dir() {
-                std::fs::remove_dir_all(&path)
-            } else {
-                std::fs::remove_file(&path)
-            };
-            removed.with_context(|| format!("cannot remove {}", path.display()))?;
-        }
+        let kept = remove_run_files(dir, false, false)?;
+        // what apo made and is still there (the lock; `checkpoints/` holding a user's folder)
+        // stays apo's
+        let surviving: BTreeSet<String> = listed
+            .into_iter()
+            .filter(|n| std::fs::symlink_metadata(dir.join(n)).is_ok())
+            .collect();
+        write_marker(dir, &surviving)?;
+        let kept: Vec<String> = kept.into_iter().filter(|n| n != MARKER).collect();
         if !kept.is_empty() {
             eprintln!(
                 "--force kept what apo did not create in {}: {}",
@@ -191,23 +360,12 @@ impl NewRunDir {
         self.lock.take()
     }
 
-    /// Undoes [`NewRunDir::prepare`] after a run failed before its first epoch: removes
-    /// apo's files, and the directory itself when this run created it and nothing else is in it.
+    /// Undoes [`NewRunDir::prepare`] after a run failed before its first epoch: removes what
+    /// apo created, and the directory itself when this run created it and nothing else is in it.
     pub fn discard(mut self) {
         drop(self.lock.take());
-        let Ok(entries) = entry_names(&self.dir) else {
-            return;
-        };
-        for name in entries.iter().filter(|n| is_run_entry(n)) {
-            let path = self.dir.join(name);
-            let _ = if path.is_dir() {
-                std::fs::remove_dir_all(&path)
-            } else {
-                std::fs::remove_file(&path)
-            };
-        }
-        if self.created {
-            let _ = std::fs::remove_dir(&self.dir);
+        if let Err(e) = remove_run_files(&self.dir, true, self.created) {
+            eprintln!("warning: cleaning up {}: {e:#}", self.dir.display());
         }
     }
 }
@@ -227,27 +385,36 @@ mod tests {
     use super::*;
 
     #[test]
-    fn run_entries_are_apos_own_files() {
-        for name in [
-            "config.toml",
-            "progress.csv",
-            "train.log",
-            "apo.lock",
-            "checkpoints",
-            ".progress.csv.tmp",
-        ] {
-            assert!(is_run_entry(name), "{name}");
-        }
-        assert!(is_run_entry("events.out.tfevents.1700000000.host"));
-        for name in [
-            "thesis.txt",
-            "curves.png",
-            ".git",
-            "config.toml.bak",
-            "progress.csv.old",
-        ] {
-            assert!(!is_run_entry(name), "{name}");
-        }
+    fn claims_list_only_entries_that_did_not_exist_and_removal_spares_the_rest() {
+        let tmp = tempfile::tempdir().expect("tempdir");
+        let dir = tmp.path();
+        std::fs::write(dir.join(LOG), "the user's own log").expect("write");
+        claim_new(dir, &[LOG, PROGRESS]).expect("claim");
+        let listed = created_entries(dir).expect("read").expect("marker");
+        assert!(
+            listed.contains(PROGRESS) && !listed.contains(LOG),
+            "{listed:?}"
+        );
+        std::fs::write(dir.join(PROGRESS), "epoch\n").expect("write");
+        std::fs::create_dir(dir.join("notes")).expect("mkdir");
+        let left = remove_run_files(dir, true, true).expect("remove");
+        assert_eq!(left, vec!["notes".to_string(), LOG.to_string()]);
+        assert!(!dir.join(PROGRESS).exists() && !dir.join(MARKER).exists());
+        assert_eq!(
+            std::fs::read_to_string(dir.join(LOG)).expect("kept"),
+            "the user's own log"
+        );
+    }
+
+    #[test]
+    fn a_marker_cannot_name_a_path_outside_its_directory() {
+        let tmp = tempfile::tempdir().expect("tempdir");
+        let run = tmp.path().join("run");
+        std::fs::create_dir(&run).expect("mkdir");
+        std::fs::write(tmp.path().join("precious.txt"), "keep").expect("write");
+        std::fs::write(run.join(MARKER), "../precious.txt\n..\n/etc/passwd\n").expect("write");
+        remove_run_files(&run, true, false).expect("remove");
+        assert!(tmp.path().join("precious.txt").exists());
     }
 
     #[test]

@@ -32,7 +32,7 @@ pub struct RunSummary {
 /// Summarizes the run in `dir` with the last `last` epochs.
 pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
     Ok(summarize_rows(
-        &progress::read(&dir.join("progress.csv"))?,
+        &progress::read_rows(&dir.join(crate::run_dir::PROGRESS))?,
         last,
     ))
 }

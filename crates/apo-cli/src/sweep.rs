@@ -6,12 +6,21 @@
 //! not to TRPO, which then runs once per environment and seed). Running the same sweep again
 //! skips finished runs, resumes interrupted ones from their checkpoint and restarts runs that
 //! never finished an epoch; `sweep.toml` records the sweep so that another sweep cannot be
-//! mixed into the directory.
+//! mixed into the directory. A run is finished when its checkpoint has reached the target
+//! epoch (not when `progress.csv` has that many rows: a run killed between its last row and
+//! its last checkpoint is resumed, which repairs it).
+//!
+//! The sweep is counted before anything is allocated (at most [`DEFAULT_MAX_RUNS`] runs
+//! unless raised), lists may not repeat a value, and keys the sweep sets itself (`env`,
+//! `seed`, `epochs`, `steps_per_epoch`) are refused in `--grid` and `--set`. Children run in
+//! their own process group: a SIGINT or SIGTERM to the sweep is forwarded to each running
+//! child (which checkpoints), and the sweep waits for all of them before it exits.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 use anyhow::{bail, Context};
@@ -33,29 +42,129 @@ pub struct Axis {
 }
 
 impl Axis {
-    /// Parses `key=v1,v2,…`.
+    /// Parses `key=v1,v2,…`; a value may be a TOML list or string with commas inside
+    /// (`hidden=[32,32],[64,64]`). A value given twice (by its parsed TOML value: `0.01` and
+    /// `0.010` are one value) is refused.
     pub fn parse(text: &str) -> anyhow::Result<Self> {
         let (key, values) = text
             .split_once('=')
             .with_context(|| format!("--grid expects key=v1,v2,…, got `{text}`"))?;
-        let values: Vec<String> = values
-            .split(',')
+        let values: Vec<String> = split_top_level(values)
+            .with_context(|| format!("--grid `{text}`"))?
+            .into_iter()
             .map(|v| v.trim().to_string())
             .filter(|v| !v.is_empty())
             .collect();
         if key.trim().is_empty() || values.is_empty() {
             bail!("--grid expects key=v1,v2,…, got `{text}`");
         }
-        Ok(Self {
-            key: key.trim().to_string(),
-            values,
-        })
+        let key = key.trim().to_string();
+        let mut seen: Vec<(toml::Value, &str)> = Vec::new();
+        for v in &values {
+            let parsed = crate::config::parse_value(v);
+            if let Some((_, first)) = seen.iter().find(|(p, _)| same_value(p, &parsed)) {
+                bail!("--grid {key}: the value `{v}` is given twice (as `{first}` and `{v}`)");
+            }
+            seen.push((parsed, v));
+        }
+        Ok(Self { key, values })
     }
 
     /// The name of the key in run names: its last dotted part.
     fn short(&self) -> &str {
         self.key.rsplit('.').next().unwrap_or(&self.key)
     }
+}
+
+/// Whether two TOML values are the same setting: numbers compare by value (`1` and `1.0`),
+/// lists element by element, everything else exactly.
+fn same_value(a: &toml::Value, b: &toml::Value) -> bool {
+    use toml::Value::{Array, Float, Integer};
+    match (a, b) {
+        (Integer(x), Float(y)) | (Float(y), Integer(x)) => (*x as f64) == *y,
+        (Array(x), Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(x, y)| same_value(x, y))
+        }
+        _ => a == b,
+    }
+}
+
+/// Splits `text` at the commas outside brackets, braces and quotes.
+fn split_top_level(text: &str) -> anyhow::Result<Vec<String>> {
+    let (mut parts, mut current, mut depth, mut quote) = (Vec::new(), String::new(), 0i32, None);
+    for c in text.chars() {
+        match (quote, c) {
+            (Some(q), c) if c == q => quote = None,
+            (Some(_), _) => {}
+            (None, '"' | '\'') => quote = Some(c),
+            (None, '[' | '{') => depth += 1,
+            (None, ']' | '}') => depth -= 1,
+            (None, ',') if depth == 0 => {
+                parts.push(std::mem::take(&mut current));
+                continue;
+            }
+            _ => {}
+        }
+        if depth < 0 {
+            bail!("a `]` or `}}` without its opening bracket");
+        }
+        current.push(c);
+    }
+    if depth != 0 || quote.is_some() {
+        bail!("an unclosed bracket or quote");
+    }
+    parts.push(current);
+    Ok(parts)
+}
+
+/// The keys a sweep sets in every run itself (from `--env`, `--seeds`, `--epochs`,
+/// `--steps-per-epoch`): refused in `--grid` and `--set`, where they would be overridden.
+const SWEEP_KEYS: [(&str, &str); 4] = [
+    ("env", "--env"),
+    ("seed", "--seeds"),
+    ("epochs", "--epochs"),
+    ("steps_per_epoch", "--steps-per-epoch"),
+];
+
+/// The most runs a sweep may have unless `--max-runs` raises it.
+pub const DEFAULT_MAX_RUNS: u64 = 10_000;
+
+/// Parses `--seeds`: a list (`0,1,2`) or a range (`0..5`, end excluded) of at most
+/// `max` seeds, counted before anything is allocated; a seed listed twice is refused.
+///
+/// # Errors
+/// Bad syntax, an empty or too long list, a seed above `i64::MAX`, or a repeated seed.
+pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
+    let bad = || format!("--seeds expects a list (0,1,2) or a range (0..5), got `{text}`");
+    let seeds: Vec<u64> = match text.split_once("..") {
+        Some((a, b)) => {
+            let (a, b): (u64, u64) = (
+                a.trim().parse().with_context(bad)?,
+                b.trim().parse().with_context(bad)?,
+            );
+            let count = b.saturating_sub(a);
+            if count > max {
+                bail!(
+                    "--seeds {text} is {count} seeds, more than the {max} runs a sweep may have \
+                     (raise the limit with --max-runs)"
+                );
+            }
+            (a..b).collect()
+        }
+        None => text
+            .split(',')
+            .map(|s| s.trim().parse::<u64>())
+            .collect::<Result<_, _>>()
+            .with_context(bad)?,
+    };
+    if seeds.is_empty() || seeds.iter().any(|&s| s > i64::MAX as u64) {
+        bail!("{}", bad());
+    }
+    let mut seen = BTreeSet::new();
+    if let Some(s) = seeds.iter().find(|s| !seen.insert(**s)) {
+        bail!("--seeds {text}: seed {s} is listed twice");
+    }
+    Ok(seeds)
 }
 
 /// What a sweep runs (recorded as `sweep.toml`).
@@ -143,13 +252,62 @@ fn applies(algo: Algorithm, key: &str, value: &str) -> bool {
 /// # Errors
 /// An unknown algorithm or environment, a grid key no algorithm of the sweep has, or a
 /// config that does not build.
-pub fn expand(spec: &SweepSpec) -> anyhow::Result<Vec<SweepRun>> {
+pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<Vec<SweepRun>> {
     let preset = parse_preset(&spec.preset)?;
     let algos = spec
         .algos
         .iter()
         .map(|a| a.parse::<Algorithm>().map_err(anyhow::Error::msg))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    check_distinct(
+        "--algo",
+        algos.iter().map(|a| a.name().to_string()).zip(&spec.algos),
+    )?;
+    let env_names = spec
+        .envs
+        .iter()
+        .map(|e| Ok(apo_envs::registry::spec(e)?.name))
+        .collect::<anyhow::Result<Vec<String>>>()?;
+    check_distinct("--env", env_names.iter().cloned().zip(&spec.envs))?;
+    for (text, flag) in spec.grid.iter().map(|a| (a.key.as_str(), "--grid")).chain(
+        spec.sets
+            .iter()
+            .map(|s| (s.split('=').next().unwrap_or(s), "--set")),
+    ) {
+        let key = text.trim();
+        if let Some((_, own)) = SWEEP_KEYS.iter().find(|(k, _)| *k == key) {
+            bail!("{flag} {key}: the sweep sets `{key}` of every run itself; use {own}");
+        }
+    }
+    let mut keys = BTreeSet::new();
+    if let Some(axis) = spec.grid.iter().find(|a| !keys.insert(a.key.as_str())) {
+        bail!(
+            "--grid {}: the axis is given twice; give its values in one --grid",
+            axis.key
+        );
+    }
+    if let Some(config) = &spec.config {
+        if let Some(section) = crate::config::file_algorithm(config)? {
+            if let Some(other) = algos.iter().find(|a| **a != section) {
+                bail!(
+                    "--config {} holds the section [algo.{section}], which the runs of {other} cannot use: a sweep \
+                     with a config file that has an algorithm section runs that algorithm only (--algo {section}); \
+                     for several algorithms, give a file without [algo.*] and set their keys with --grid or --set",
+                    config.display()
+                );
+            }
+        }
+    }
+    let count = count_runs(spec, &algos)?;
+    if count > max_runs {
+        bail!(
+            "the sweep has {count} runs ({} environments × {} algorithms × grid cells × {} seeds), more than \
+             {max_runs}; raise the limit with --max-runs if that is meant",
+            spec.envs.len(),
+            algos.len(),
+            spec.seeds.len()
+        );
+    }
     for axis in &spec.grid {
         if !algos
             .iter()
@@ -163,8 +321,7 @@ pub fn expand(spec: &SweepSpec) -> anyhow::Result<Vec<SweepRun>> {
         }
     }
     let mut runs = Vec::new();
-    for env in &spec.envs {
-        let env_name = apo_envs::registry::spec(env)?.name;
+    for env_name in &env_names {
         for &algo in &algos {
             let axes: Vec<&Axis> = spec
                 .grid
@@ -188,6 +345,11 @@ pub fn expand(spec: &SweepSpec) -> anyhow::Result<Vec<SweepRun>> {
                 for &seed in &spec.seeds {
                     let mut name = format!("{}-{algo}", run_dir::env_label(&env_name));
                     for ((_, v), axis) in cell.iter().zip(&axes) {
+                        let v: String = v
+                            .chars()
+                            .filter(|c| !c.is_whitespace())
+                            .map(|c| if matches!(c, '/' | '\\') { '_' } else { c })
+                            .collect();
                         name.push_str(&format!("-{}={v}", axis.short()));
                     }
                     name.push_str(&format!("-s{seed}"));
@@ -200,21 +362,69 @@ pub fn expand(spec: &SweepSpec) -> anyhow::Result<Vec<SweepRun>> {
                     };
                     let mut sets = run.sets(spec);
                     sets.push(format!("seed={seed}"));
+                    sets.push(format!("epochs={epochs}"));
                     sets.extend(spec.steps_per_epoch.map(|n| format!("steps_per_epoch={n}")));
-                    RunConfig::build_with_preset(
+                    let config = RunConfig::build_with_preset(
                         algo,
-                        &env_name,
+                        env_name,
                         preset,
                         spec.config.as_deref(),
                         &sets,
                     )
                     .with_context(|| format!("run {}", run.name))?;
+                    let env = apo_envs::registry::spec(env_name)?;
+                    config
+                        .check_memory(
+                            env.observation_dim,
+                            apo_train::action_kind(&env.action_space),
+                        )
+                        .with_context(|| format!("run {}", run.name))?;
                     runs.push(run);
                 }
             }
         }
     }
+    let mut names = BTreeSet::new();
+    if let Some(run) = runs.iter().find(|r| !names.insert(r.name.as_str())) {
+        bail!(
+            "two runs of the sweep would share the directory {} (grid keys with the same last part?); \
+             sweep them separately",
+            run.name
+        );
+    }
     Ok(runs)
+}
+
+/// Refuses a list with two entries that mean the same (`canonical`, as given).
+fn check_distinct<'a>(
+    flag: &str,
+    items: impl Iterator<Item = (String, &'a String)>,
+) -> anyhow::Result<()> {
+    let mut seen: BTreeMap<String, &String> = BTreeMap::new();
+    for (canonical, given) in items {
+        if let Some(first) = seen.insert(canonical.clone(), given) {
+            bail!("{flag}: `{first}` and `{given}` are the same ({canonical}); give each once");
+        }
+    }
+    Ok(())
+}
+
+/// The number of runs of the sweep, counted without building them (an overflow counts as
+/// too many).
+fn count_runs(spec: &SweepSpec, algos: &[Algorithm]) -> anyhow::Result<u64> {
+    let mut total: u64 = 0;
+    for &algo in algos {
+        let mut cells: u64 = 1;
+        for axis in spec
+            .grid
+            .iter()
+            .filter(|axis| applies(algo, &axis.key, &axis.values[0]))
+        {
+            cells = cells.saturating_mul(axis.values.len() as u64);
+        }
+        total = total.saturating_add(cells.saturating_mul(spec.seeds.len() as u64));
+    }
+    Ok(total.saturating_mul(spec.envs.len() as u64))
 }
 
 /// Where a run of the sweep stands.
@@ -222,35 +432,37 @@ pub fn expand(spec: &SweepSpec) -> anyhow::Result<Vec<SweepRun>> {
 pub enum RunStatus {
     /// No run directory yet.
     New,
-    /// A run directory with `done` of `epochs` epochs and a checkpoint to resume from.
+    /// A run directory whose checkpoint is at epoch `done`, before the target: resumed.
     Interrupted {
         /// Epochs done.
         done: usize,
     },
-    /// A run directory that finished no epoch or has no checkpoint: started again.
+    /// A run directory without a checkpoint: started again with `--force` (which removes only
+    /// what apo created there).
     Failed,
-    /// All epochs done.
+    /// The checkpoint has reached the target epoch.
     Finished,
 }
 
-/// Epochs recorded in `dir/progress.csv` (0 without one).
+/// Epochs recorded in `dir/progress.csv` (0 without one, or when it cannot be read): for the
+/// progress bar only.
 pub fn epochs_done(dir: &Path) -> usize {
-    progress::read(&dir.join(run_dir::PROGRESS)).map_or(0, |rows| rows.len())
+    progress::read_lenient(&dir.join(run_dir::PROGRESS), true).map_or(0, |p| p.rows.len())
 }
 
-/// The status of the run in `dir` whose target is `epochs` epochs.
-pub fn status(dir: &Path, epochs: usize) -> RunStatus {
-    if !dir.exists() {
-        return RunStatus::New;
+/// The status of the run in `dir` whose target is `epochs` epochs, decided by its checkpoint.
+///
+/// # Errors
+/// A checkpoint whose state cannot be read (the run is then left alone).
+pub fn status(dir: &Path, epochs: usize) -> anyhow::Result<RunStatus> {
+    if std::fs::symlink_metadata(dir).is_err() {
+        return Ok(RunStatus::New);
     }
-    let done = epochs_done(dir);
-    if done >= epochs {
-        RunStatus::Finished
-    } else if done > 0 && dir.join(run_dir::CHECKPOINTS).join("latest").exists() {
-        RunStatus::Interrupted { done }
-    } else {
-        RunStatus::Failed
-    }
+    Ok(match crate::checkpoint::latest_epoch(dir)? {
+        Some(done) if done >= epochs => RunStatus::Finished,
+        Some(done) if done > 0 => RunStatus::Interrupted { done },
+        _ => RunStatus::Failed,
+    })
 }
 
 /// How to run a sweep.
@@ -283,9 +495,14 @@ pub struct SweepOutcome {
 fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
     let path = out.join("sweep.toml");
     let text = toml::to_string_pretty(spec).context("serializing the sweep")?;
-    if path.exists() {
-        let old = std::fs::read_to_string(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
+    if std::fs::symlink_metadata(out).is_ok() && !out.is_dir() {
+        bail!(
+            "--out {} exists and is not a directory; use a new --out",
+            out.display()
+        );
+    }
+    if std::fs::symlink_metadata(&path).is_ok() {
+        let old = crate::input::read_text(&path, "sweep record", crate::input::SMALL_FILE)?;
         let old: SweepSpec = toml::from_str(&old)
             .with_context(|| format!("{} is not a sweep record", path.display()))?;
         if &old != spec {
@@ -296,29 +513,31 @@ fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    if out.exists() && std::fs::read_dir(out)?.next().is_some() {
+    let occupied = std::fs::read_dir(out).is_ok_and(|mut entries| entries.next().is_some());
+    if occupied {
         bail!(
-            "{} exists and is not a sweep directory (no sweep.toml); use a new --out",
+            "--out {} exists and is not a sweep directory (no sweep.toml); use a new --out",
             out.display()
         );
     }
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    crate::input::prepare_output_dir(out, "--out")?;
     crate::atomic::write(&path, text.as_bytes())
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// The child `apo train` command of `run`.
+/// The child `apo train` command of `run`, whose directory `dir` has `status`.
 fn command(
     exe: &Path,
     spec: &SweepSpec,
     run: &SweepRun,
     options: &SweepOptions,
     dir: &Path,
+    status: RunStatus,
 ) -> Command {
     let mut cmd = Command::new(exe);
     cmd.arg("train").arg("--quiet");
     cmd.arg("--threads").arg(options.threads.to_string());
-    match status(dir, options.epochs) {
+    match status {
         RunStatus::Interrupted { .. } => {
             cmd.arg("--resume").arg(dir);
             cmd.arg("--epochs").arg(options.epochs.to_string());
@@ -349,52 +568,137 @@ fn command(
     cmd
 }
 
+/// The signals a sweep has received: how many, and the last one's number. Each is forwarded
+/// to every running child.
+#[derive(Debug, Default)]
+pub struct Received {
+    /// Signals received so far.
+    pub count: AtomicUsize,
+    /// The number of the last one (SIGINT 2, SIGTERM 15).
+    pub which: AtomicUsize,
+}
+
+impl Received {
+    fn stopped(&self) -> bool {
+        self.count.load(Ordering::SeqCst) > 0
+    }
+}
+
+/// The last lines of a child's stderr kept for the failure message.
+const TAIL_LINES: usize = 3;
+
+/// Runs one child to its end: spawned in its own process group (a terminal's Ctrl-C reaches
+/// the sweep only, which forwards it), registered in `running` so that signals reach it, its
+/// stderr drained (only the last lines kept).
+fn run_child(
+    mut cmd: Command,
+    slot: usize,
+    running: &Mutex<BTreeMap<usize, (u32, usize)>>,
+) -> std::io::Result<(std::process::ExitStatus, String)> {
+    cmd.stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        cmd.process_group(0);
+    }
+    let mut child = cmd.spawn()?;
+    lock(running).insert(slot, (child.id(), 0));
+    let mut tail: std::collections::VecDeque<String> = std::collections::VecDeque::new();
+    if let Some(stderr) = child.stderr.take() {
+        for line in BufReader::new(stderr).lines() {
+            let Ok(line) = line else { break };
+            if tail.len() == TAIL_LINES {
+                tail.pop_front();
+            }
+            tail.push_back(line);
+        }
+    }
+    let status = child.wait();
+    lock(running).remove(&slot);
+    Ok((status?, Vec::from(tail).join(" | ")))
+}
+
+/// Sends each running child the signals it has not been sent yet.
+fn forward(signals: &Received, running: &Mutex<BTreeMap<usize, (u32, usize)>>) {
+    let count = signals.count.load(Ordering::SeqCst);
+    let which = signals.which.load(Ordering::SeqCst);
+    for (pid, sent) in lock(running).values_mut() {
+        while *sent < count {
+            #[cfg(unix)]
+            if let (Ok(pid), Ok(sig)) = (i32::try_from(*pid), i32::try_from(which)) {
+                // SAFETY: kill(2) with a child's pid, which stays reserved until it is waited for
+                unsafe {
+                    libc::kill(pid, sig);
+                }
+            }
+            *sent += 1;
+        }
+    }
+}
+
 /// Runs the sweep: `runs` (from [`expand`]) under `options.out`, `options.jobs` at a time,
 /// each as `exe train …`. `tick(epochs_done_over_all_runs, runs_done)` is called about every
-/// second. Stops launching runs once `stop` is raised (the running ones get the signal
-/// themselves and checkpoint).
+/// second. Once a signal is received (`signals`), no run is launched, each running child gets
+/// the signal (and every later one) and the sweep waits for all of them to end.
+///
+/// Before anything is launched, every existing run's checkpoint is read: one that cannot be
+/// read stops the sweep with its path, and nothing is touched.
 ///
 /// # Errors
-/// When the directory holds another sweep or cannot be written.
+/// When the directory holds another sweep or cannot be written, or a run's checkpoint
+/// cannot be read.
 pub fn run(
     exe: &Path,
     spec: &SweepSpec,
     runs: &[SweepRun],
     options: &SweepOptions,
-    stop: &AtomicBool,
+    signals: &Received,
     tick: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<SweepOutcome> {
     record(&options.out, spec)?;
+    let statuses = runs
+        .iter()
+        .map(|r| {
+            let dir = options.out.join(&r.name);
+            status(&dir, options.epochs).with_context(|| {
+                format!(
+                    "run {}: its checkpoint cannot be read; the sweep stops and touches nothing (repair or move the run)",
+                    dir.display()
+                )
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let outcome = Mutex::new(SweepOutcome::default());
+    let running = Mutex::new(BTreeMap::new());
     let workers_left = AtomicUsize::new(options.jobs.max(1));
     std::thread::scope(|scope| {
         for _ in 0..options.jobs.max(1) {
             scope.spawn(|| {
                 loop {
                     let i = next.fetch_add(1, Ordering::SeqCst);
-                    let Some(run) = runs.get(i) else { break };
-                    if stop.load(Ordering::SeqCst) {
+                    let (Some(run), Some(&status)) = (runs.get(i), statuses.get(i)) else {
+                        break;
+                    };
+                    if signals.stopped() {
                         break;
                     }
                     let dir = options.out.join(&run.name);
-                    if status(&dir, options.epochs) == RunStatus::Finished {
+                    if status == RunStatus::Finished {
                         lock(&outcome).skipped += 1;
                         done.fetch_add(1, Ordering::SeqCst);
                         continue;
                     }
-                    let result = command(exe, spec, run, options, &dir).output();
+                    let result =
+                        run_child(command(exe, spec, run, options, &dir, status), i, &running);
                     let mut outcome = lock(&outcome);
                     match result {
-                        Ok(out) if out.status.success() => outcome.finished += 1,
-                        Ok(_) | Err(_) if stop.load(Ordering::SeqCst) => {}
-                        Ok(out) => {
-                            let text = String::from_utf8_lossy(&out.stderr);
-                            let tail: Vec<&str> = text.lines().rev().take(3).collect();
-                            let tail: Vec<&str> = tail.into_iter().rev().collect();
-                            outcome.failed.push((run.name.clone(), tail.join(" | ")));
-                        }
+                        Ok((exit, _)) if exit.success() => outcome.finished += 1,
+                        Ok(_) | Err(_) if signals.stopped() => {}
+                        Ok((_, tail)) => outcome.failed.push((run.name.clone(), tail)),
                         Err(e) => outcome
                             .failed
                             .push((run.name.clone(), format!("cannot start: {e}"))),
@@ -404,19 +708,24 @@ pub fn run(
                 workers_left.fetch_sub(1, Ordering::SeqCst);
             });
         }
+        let mut last_tick = std::time::Instant::now() - std::time::Duration::from_secs(1);
         while workers_left.load(Ordering::SeqCst) > 0 {
-            let epochs: usize = runs
-                .iter()
-                .map(|r| epochs_done(&options.out.join(&r.name)).min(options.epochs))
-                .sum();
-            tick(epochs, done.load(Ordering::SeqCst));
-            std::thread::sleep(std::time::Duration::from_millis(500));
+            forward(signals, &running);
+            if last_tick.elapsed() >= std::time::Duration::from_secs(1) {
+                let epochs: usize = runs
+                    .iter()
+                    .map(|r| epochs_done(&options.out.join(&r.name)).min(options.epochs))
+                    .sum();
+                tick(epochs, done.load(Ordering::SeqCst));
+                last_tick = std::time::Instant::now();
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
         }
     });
     let mut outcome = outcome
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
-    outcome.interrupted = stop.load(Ordering::SeqCst);
+    outcome.interrupted = signals.stopped();
     Ok(outcome)
 }
 
@@ -449,7 +758,7 @@ impl Metric {
     }
 }
 
-/// One cell's result: the metric's mean and standard deviation over its seeds.
+/// One cell's result: the metric's mean and standard deviation over its finished seeds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellResult {
     /// Environment.
@@ -458,8 +767,10 @@ pub struct CellResult {
     pub algo: Algorithm,
     /// The cell's label (`omega1=0.001 omega2=0.003`, `-` without axes).
     pub cell: String,
-    /// Seeds with a value.
+    /// Finished seeds with a value.
     pub seeds: usize,
+    /// Runs of the cell that have not finished (left out of the statistics).
+    pub incomplete: usize,
     /// Mean over seeds.
     pub mean: f64,
     /// Population standard deviation over seeds.
@@ -467,14 +778,19 @@ pub struct CellResult {
 }
 
 /// Each cell's `metric` (over the last `last` epochs where it says so), mean ± std over the
-/// seeds whose run has episodes; cells without any are left out. Sorted by environment,
+/// seeds whose run has finished its `epochs` and has episodes; unfinished runs are counted as
+/// incomplete and left out. Cells without any value are left out. Sorted by environment,
 /// algorithm, then best first.
-pub fn cell_results(out: &Path, runs: &[SweepRun], metric: Metric, last: usize) -> Vec<CellResult> {
-    let mut cells: BTreeMap<(String, String, String), Vec<f64>> = BTreeMap::new();
+pub fn cell_results(
+    out: &Path,
+    runs: &[SweepRun],
+    epochs: usize,
+    metric: Metric,
+    last: usize,
+) -> Vec<CellResult> {
+    let mut cells: BTreeMap<(String, String, String), (Vec<f64>, usize)> = BTreeMap::new();
     for run in runs {
-        let value = summarize(&out.join(&run.name), last)
-            .ok()
-            .and_then(|s| metric.of(&s));
+        let dir = out.join(&run.name);
         let entry = cells
             .entry((
                 run.env.clone(),
@@ -482,18 +798,27 @@ pub fn cell_results(out: &Path, runs: &[SweepRun], metric: Metric, last: usize) 
                 run.cell_label(),
             ))
             .or_default();
-        entry.extend(value);
+        if status(&dir, epochs).ok() != Some(RunStatus::Finished) {
+            entry.1 += 1;
+            continue;
+        }
+        let value = summarize(&dir, last)
+            .ok()
+            .and_then(|s| metric.of(&s))
+            .filter(|v| v.is_finite());
+        entry.0.extend(value);
     }
     let mut results: Vec<CellResult> = cells
         .into_iter()
-        .filter(|(_, values)| !values.is_empty())
-        .filter_map(|((env, algo, cell), values)| {
+        .filter(|(_, (values, _))| !values.is_empty())
+        .filter_map(|((env, algo, cell), (values, incomplete))| {
             let (mean, std) = crate::summary::mean_std(&values);
             Some(CellResult {
                 env,
                 algo: algo.parse().ok()?,
                 cell,
                 seeds: values.len(),
+                incomplete,
                 mean,
                 std,
             })
@@ -507,17 +832,17 @@ pub fn cell_results(out: &Path, runs: &[SweepRun], metric: Metric, last: usize) 
     results
 }
 
-/// The cells as CSV: `env,algo,cell,seeds,mean,std,best` (best: the first of its
+/// The cells as CSV: `env,algo,cell,seeds,incomplete,mean,std,best` (best: the first of its
 /// environment and algorithm).
 pub fn cells_csv(results: &[CellResult]) -> String {
-    let mut out = String::from("env,algo,cell,seeds,mean,std,best\n");
+    let mut out = String::from("env,algo,cell,seeds,incomplete,mean,std,best\n");
     let mut previous: Option<(&str, Algorithm)> = None;
     for r in results {
         let best = previous != Some((r.env.as_str(), r.algo));
         previous = Some((r.env.as_str(), r.algo));
         out.push_str(&format!(
-            "{},{},\"{}\",{},{:.4},{:.4},{}\n",
-            r.env, r.algo, r.cell, r.seeds, r.mean, r.std, best
+            "{},{},\"{}\",{},{},{:.4},{:.4},{}\n",
+            r.env, r.algo, r.cell, r.seeds, r.incomplete, r.mean, r.std, best
         ));
     }
     out

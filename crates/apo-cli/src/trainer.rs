@@ -107,6 +107,13 @@ pub fn train<B: Backend>(
         Ok(state)
     };
     let progress_path = run_dir.join(crate::run_dir::PROGRESS);
+    if writer {
+        // what this run will create, recorded before it exists (the run directory's marker)
+        crate::run_dir::claim_new(
+            run_dir,
+            &[crate::run_dir::PROGRESS, crate::run_dir::CHECKPOINTS],
+        )?;
+    }
     let mut rows = Vec::new();
     if resume {
         let on_disk = if writer && progress_path.exists() {
@@ -159,6 +166,9 @@ pub fn train<B: Backend>(
         }
     }
     let mut events = writer.then(|| EventWriter::create(run_dir)).transpose()?;
+    if let Some(name) = events.as_ref().and_then(|e| e.path().file_name()) {
+        crate::run_dir::claim(run_dir, &name.to_string_lossy())?;
+    }
     let mut checkpoint_epoch = trainer.state().epoch;
     let epochs = config.train.epochs;
     while !trainer.finished() {

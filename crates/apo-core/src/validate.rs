@@ -24,15 +24,44 @@ pub(crate) fn check(
     if ok {
         Ok(())
     } else {
-        Err(ConfigError {
+        Err(ConfigError::new(field, value, rule))
+    }
+}
+
+impl ConfigError {
+    /// The error of `field` = `value` breaking `rule` (`"must be ≥ 0"`); a non-finite value
+    /// breaks every range, and the rule then says so first (`"must be finite and ≥ 0"`).
+    pub fn new(field: &str, value: impl fmt::Display, rule: &str) -> Self {
+        let value = value.to_string();
+        let rule = match (value.as_str(), rule.strip_prefix("must be ")) {
+            ("inf" | "-inf" | "NaN", Some(rest)) => format!("must be finite and {rest}"),
+            ("inf" | "-inf" | "NaN", None) => format!("must be finite; {rule}"),
+            _ => rule.to_string(),
+        };
+        Self {
             field: field.into(),
-            value: value.to_string(),
-            rule: rule.into(),
-        })
+            value,
+            rule,
+        }
     }
 }
 
 /// Whether `x` is finite and ≥ 0.
 pub(crate) fn finite_nonneg(x: f64) -> bool {
     x.is_finite() && x >= 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_non_finite_value_is_called_so() {
+        let e = check(false, "k", f64::INFINITY, "must be ≥ 0").unwrap_err();
+        assert_eq!(e.rule, "must be finite and ≥ 0");
+        let e = check(false, "lr", f64::NAN, "in (0, 1]").unwrap_err();
+        assert_eq!(e.rule, "must be finite; in (0, 1]");
+        let e = check(false, "k", -1.0, "must be ≥ 0").unwrap_err();
+        assert_eq!(e.rule, "must be ≥ 0");
+    }
 }

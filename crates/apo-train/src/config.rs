@@ -7,6 +7,10 @@ use serde::{Deserialize, Serialize};
 pub const MAX_STEPS_PER_EPOCH: usize = 100_000_000;
 /// Upper bound of `num_envs`.
 pub const MAX_NUM_ENVS: usize = 65_536;
+
+/// The most epochs a run may have (a billion: beyond any training budget, and far from the
+/// overflow of the step counters).
+pub const MAX_EPOCHS: usize = 1_000_000_000;
 /// Upper bound of the number of hidden layers.
 pub const MAX_LAYERS: usize = 64;
 /// Upper bound of a hidden layer's width.
@@ -121,11 +125,7 @@ impl TrainConfig {
             if ok {
                 Ok(())
             } else {
-                Err(ConfigError {
-                    field: field.into(),
-                    value,
-                    rule: rule.into(),
-                })
+                Err(ConfigError::new(field, value, rule))
             }
         };
         check(
@@ -133,6 +133,12 @@ impl TrainConfig {
             "epochs",
             self.epochs.to_string(),
             "must be ≥ 1",
+        )?;
+        check(
+            self.epochs <= MAX_EPOCHS,
+            "epochs",
+            self.epochs.to_string(),
+            &format!("must be ≤ {MAX_EPOCHS}"),
         )?;
         check(
             self.num_envs > 0,

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use apo_cli::progress::{self, ProgressRow};
 
 mod hardening;
+mod lose_nothing;
 mod physics;
 mod plot;
 mod reporting;

@@ -377,7 +377,7 @@ fn plot_errors_name_the_culprit() {
         path(&tmp.path().join("no-such-dir/curves.png")),
     ]);
     assert!(
-        err.contains("cannot draw") && err.contains("no-such-dir"),
+        err.contains("--out") && err.contains("no-such-dir") && err.contains("does not exist"),
         "{err}"
     );
     assert!(!figure.exists());

@@ -21,11 +21,10 @@ fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
 /// A run directory of `algo` on CartPole with rows `(mean, min)` (bound = mean − 10).
 fn run(dir: &Path, algo: Algorithm, rows: &[(f64, f64)]) {
     std::fs::create_dir_all(dir).expect("create run dir");
-    std::fs::write(
-        dir.join("config.toml"),
-        RunConfig::defaults(algo, "CartPole-v1").to_toml(),
-    )
-    .expect("write config.toml");
+    let mut config = RunConfig::defaults(algo, "CartPole-v1");
+    // complete runs: as many epochs as rows
+    config.train.epochs = rows.len().max(1);
+    std::fs::write(dir.join("config.toml"), config.to_toml()).expect("write config.toml");
     let rows: Vec<ProgressRow> = rows
         .iter()
         .enumerate()

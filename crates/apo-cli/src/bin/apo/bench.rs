@@ -1,0 +1,251 @@
+//! `apo bench`: timings of updates, epochs, environments and policy calls.
+
+use anyhow::Context;
+use apo_cli::config::{BackendKind, KernelsKind, RunConfig};
+use apo_core::Algorithm;
+use apo_envs::mujoco::Physics;
+use clap::Subcommand;
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// Time one APO and one TRPO trust-region update, a KL Hessian-vector product (double
+    /// backward), a Fisher-vector product and a value-fit Adam step (the last two on Burn's
+    /// graph and on the host kernels).
+    Update {
+        /// Backend.
+        #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
+        backend: BackendKind,
+        /// Where the trust-region updates' Fisher-vector products run.
+        #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
+        kernels: KernelsKind,
+        /// Samples in the batch.
+        #[arg(long, default_value_t = 30_000, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
+        batch: u64,
+        /// Observation dimension.
+        #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        obs: u64,
+        /// Action dimension.
+        #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+        act: u64,
+        /// Timed repeats (after one warm-up); the median is printed.
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]
+        repeats: u64,
+    },
+    /// Train a few epochs and print where each epoch's time goes (rollout, policy update,
+    /// value update, other) and the end-to-end steps/s (medians over epochs 2.. on the last line).
+    Epoch {
+        /// Algorithm.
+        #[arg(long, value_parser = crate::parse_algo, default_value = "apo")]
+        algo: Algorithm,
+        /// Environment name.
+        #[arg(long, default_value = "Hopper")]
+        env: String,
+        /// Environment steps per epoch.
+        #[arg(long, default_value_t = 4000)]
+        steps_per_epoch: usize,
+        /// Epochs (the first includes the set-up and is left out of the medians).
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(2..=1000))]
+        epochs: u64,
+        /// Environments stepped together.
+        #[arg(long, default_value_t = 1)]
+        num_envs: usize,
+        /// Backend of the updates.
+        #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
+        backend: BackendKind,
+        /// Where the Fisher-vector products and the value fit run.
+        #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
+        kernels: KernelsKind,
+        /// Threads that step the environments (0: the cores available).
+        #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+        threads: usize,
+    },
+    /// Environment steps per second of one environment with random actions.
+    Env {
+        /// Environment name.
+        #[arg(long)]
+        env: String,
+        /// Steps to time (environment steps, summed over the vector).
+        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
+        steps: u64,
+        /// Environments stepped together as a vector (1: one bare environment).
+        #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=65_536))]
+        num_envs: usize,
+        /// Threads that step the vector (0: the cores available).
+        #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+        threads: usize,
+        /// Physics of MuJoCo environments: mujoco2, or mujoco3 (builds with the `mujoco3` feature).
+        #[arg(long, value_parser = crate::parse_physics, default_value = "mujoco2")]
+        physics: Physics,
+    },
+    /// Microseconds per rollout policy call (host MLP, (64, 64)).
+    Policy {
+        /// Observation dimension.
+        #[arg(long, default_value_t = 11, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        obs: u64,
+        /// Action dimension.
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+        act: u64,
+        /// Observations per call (environments stepped together).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        batch: u64,
+        /// Calls to time.
+        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
+        calls: u64,
+    },
+}
+
+pub fn run(command: BenchCommand) -> anyhow::Result<()> {
+    match command {
+        BenchCommand::Update {
+            backend,
+            kernels,
+            batch,
+            obs,
+            act,
+            repeats,
+        } => {
+            let (batch, obs, act, repeats) =
+                (batch as usize, obs as usize, act as usize, repeats as usize);
+            let mut sized = RunConfig::defaults(Algorithm::Apo, "");
+            sized.train.steps_per_epoch = batch;
+            sized
+                .check_memory(obs, apo_core::ActionKind::Continuous { dim: act })
+                .context("apo bench update --batch/--obs/--act")?;
+            let t = match backend {
+                BackendKind::Cpu => apo_cli::bench::update::<burn::backend::NdArray>(
+                    &Default::default(),
+                    batch,
+                    obs,
+                    act,
+                    repeats,
+                    kernels.resolve(backend),
+                ),
+                BackendKind::Wgpu => {
+                    crate::quiet_wgpu();
+                    apo_cli::bench::update::<burn::backend::Wgpu>(
+                        &Default::default(),
+                        batch,
+                        obs,
+                        act,
+                        repeats,
+                        kernels.resolve(backend),
+                    )
+                }
+            };
+            println!(
+                "backend={backend} kernels={kernels} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
+                t.params
+            );
+            println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries.0);
+            println!("apo_update_s={:.4} ({})", t.apo_s, t.tries.1);
+            println!("hvp_s={:.5}", t.hvp_s);
+            println!("fvp_s_burn={:.5}", t.fvp_s[0]);
+            println!("fvp_s_host={:.5}", t.fvp_s[1]);
+            let (burn_step, host_step) = t.value_step_s;
+            println!("value_step_s_burn={burn_step:.5}");
+            println!("value_step_s_host={host_step:.5}");
+            println!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s);
+        }
+        BenchCommand::Epoch {
+            algo,
+            env,
+            steps_per_epoch,
+            epochs,
+            num_envs,
+            backend,
+            kernels,
+            threads,
+        } => {
+            let spec = apo_envs::registry::spec(&env)?;
+            let mut config = RunConfig {
+                backend,
+                kernels,
+                ..RunConfig::defaults(algo, &env)
+            };
+            config.train.steps_per_epoch = steps_per_epoch;
+            config.train.epochs = epochs as usize;
+            config.train.num_envs = num_envs;
+            config.validate()?;
+            config.check_memory(
+                spec.observation_dim,
+                apo_train::action_kind(&spec.action_space),
+            )?;
+            if backend == BackendKind::Wgpu {
+                crate::quiet_wgpu();
+            }
+            let split = apo_cli::bench::epoch(&config, threads)?;
+            println!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend}");
+            println!("epoch  total_s  rollout_s  policy_s  value_s  other_s  steps_per_s");
+            for e in &split {
+                println!(
+                    "{:>5}  {:>7.3}  {:>9.3}  {:>8.3}  {:>7.3}  {:>7.3}  {:>11.0}",
+                    e.epoch,
+                    e.total_s,
+                    e.rollout_s,
+                    e.policy_s,
+                    e.value_s,
+                    e.other_s,
+                    e.steps_per_s
+                );
+            }
+            let later = split.get(1..).unwrap_or_default();
+            let med = |f: fn(&apo_cli::bench::EpochSplit) -> f64| {
+                apo_cli::bench::median_of(later.iter().map(f))
+            };
+            println!(
+                "median_epochs_2_on: total_s={:.3} rollout_s={:.3} policy_s={:.3} value_s={:.3} other_s={:.3} steps_per_s={:.0}",
+                med(|e| e.total_s),
+                med(|e| e.rollout_s),
+                med(|e| e.policy_s),
+                med(|e| e.value_s),
+                med(|e| e.other_s),
+                med(|e| e.steps_per_s)
+            );
+        }
+        BenchCommand::Env {
+            env,
+            steps,
+            num_envs,
+            threads,
+            physics,
+        } => {
+            let options = apo_envs::MakeOptions {
+                physics: Some(physics),
+                ..Default::default()
+            };
+            let rate = if num_envs == 1 {
+                let mut e = apo_envs::make_with(&env, &options)?;
+                apo_envs::mujoco::steps_per_second(e.as_mut(), steps as usize, 0)
+            } else {
+                let mut envs = apo_envs::vector::VecEnv::make_with(&env, num_envs, &options)?
+                    .with_threads(threads)?;
+                println!("threads={}", envs.threads());
+                apo_envs::mujoco::vector_steps_per_second(&mut envs, steps as usize, 0)
+            };
+            println!("env={env} steps={steps} num_envs={num_envs} physics={physics}");
+            println!("steps_per_sec={rate:.1}");
+        }
+        BenchCommand::Policy {
+            obs,
+            act,
+            batch,
+            calls,
+        } => {
+            let (obs, act, batch, calls) =
+                (obs as usize, act as usize, batch as usize, calls as usize);
+            apo_cli::input::check_fits(
+                apo_cli::bench::policy_call_bytes(obs, act, batch),
+                "apo bench policy --obs/--act/--batch",
+            )?;
+            let us = apo_cli::bench::policy_call_us(
+                obs,
+                apo_core::ActionKind::Continuous { dim: act },
+                batch,
+                calls,
+            );
+            println!("obs={obs} act={act} batch={batch}");
+            println!("policy_call_us={us:.3}");
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,55 @@
+//! `apo config`: the effective configuration, every key documented.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use apo_cli::config::{Preset, RunConfig};
+use apo_cli::run_dir;
+use apo_core::Algorithm;
+
+#[derive(clap::Args)]
+pub struct ConfigArgs {
+    /// Algorithm whose defaults to start from.
+    #[arg(long, value_parser = crate::parse_algo, default_value = "apo")]
+    algo: Algorithm,
+    /// Environment name.
+    #[arg(long)]
+    env: Option<String>,
+    /// TOML config file layered over the defaults.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Settings layered over the defaults and --config, under --set.
+    #[arg(long, value_enum)]
+    preset: Option<Preset>,
+    /// Override a config key, e.g. --set algo.k=5 (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+    /// Print this run directory's config instead.
+    #[arg(long, conflicts_with_all = ["env", "config", "preset", "sets"])]
+    run: Option<PathBuf>,
+}
+
+pub fn run(args: ConfigArgs) -> anyhow::Result<()> {
+    let config = match &args.run {
+        Some(run) => RunConfig::load(&run.join(run_dir::CONFIG))
+            .with_context(|| format!("{} is not a run directory", run.display()))?,
+        None => {
+            let algo = match &args.config {
+                Some(path) => apo_cli::config::file_algorithm(path)?.unwrap_or(args.algo),
+                None => args.algo,
+            };
+            if let Some(env) = &args.env {
+                apo_envs::registry::spec(env)?;
+            }
+            RunConfig::build_with_preset(
+                algo,
+                args.env.as_deref().unwrap_or(""),
+                args.preset,
+                args.config.as_deref(),
+                &args.sets,
+            )?
+        }
+    };
+    print!("{}", config.documented_toml());
+    Ok(())
+}

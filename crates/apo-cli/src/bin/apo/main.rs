@@ -1,0 +1,177 @@
+//! `apo`: train, evaluate, plot, report, sweep and benchmark APO, PAPO and the baselines.
+//!
+//! One module per subcommand, each owning its arguments; what they share — how user files
+//! are read and output paths checked (`apo_cli::input`), run-directory ownership
+//! (`apo_cli::run_dir`), signals (`signals`) — lives in one place.
+
+use std::process::ExitCode;
+
+use apo_core::Algorithm;
+use apo_envs::mujoco::Physics;
+use clap::{Parser, Subcommand};
+
+mod bench;
+mod config;
+mod eval;
+mod list;
+mod plot;
+mod report;
+mod signals;
+mod summary;
+mod sweep;
+mod train;
+
+const CONFIG_HELP: &str = "Defaults are the paper's (configs/<algo>.toml spells them out). Every config key with its \
+meaning, default and range: `apo config --algo <ALGO>`; set any key with --set key=value or a --config file.";
+
+#[derive(Parser)]
+#[command(
+    name = "apo",
+    version,
+    about = "Absolute Policy Optimization and baselines on Burn"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Train a policy (Ctrl-C or SIGTERM: checkpoint and stop; a second one: stop at once).
+    #[command(after_help = CONFIG_HELP)]
+    Train(train::TrainArgs),
+    /// Evaluate a run's policy: prints the mean, std, min and max return.
+    Eval(eval::EvalArgs),
+    /// Print the effective config with every key's meaning and range (TOML; usable as --config).
+    Config(config::ConfigArgs),
+    /// List environments and algorithms.
+    List,
+    /// Plot learning curves of runs (mean return, min–max band, worst return).
+    Plot(plot::PlotArgs),
+    /// The APO paper's Theorem 1 checked exactly on random tabular MDPs: (a) the surrogate
+    /// M_k^j(π) ≤ B_k(π) = J − k·V, (b) equality at π_j, (c) B_k along exact APO iterations and
+    /// along the practical trust-region surrogate, (d) Selberg's confidence (docs/theory.md).
+    Theory(apo_cli::theory::TheoryArgs),
+    /// The paper's metrics of runs: average mean and worst return over all and the last N epochs.
+    Summary(summary::SummaryArgs),
+    /// The paper's metrics per environment and algorithm, mean ± std over seeds: average mean
+    /// and worst return over all and the last N epochs, the bound and its confidence, the
+    /// TRPO-normalized scores, the count of "best" per metric; Markdown on stdout, and with
+    /// --out also report.md, report.csv and learning curves (mean ± std over seeds).
+    Report(report::ReportArgs),
+    /// Run a grid of config values × seeds × algorithms × environments, each a separate run
+    /// under one directory, several at once; run it again to resume (finished runs are
+    /// skipped, interrupted ones resumed). Ends with each cell's metric over its seeds.
+    /// SIGINT/SIGTERM are passed on to the running runs, which checkpoint; the sweep waits for them.
+    Sweep(sweep::SweepArgs),
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
+}
+
+/// The registered algorithms' names, comma-separated.
+fn algorithm_names() -> String {
+    Algorithm::ALL
+        .iter()
+        .map(|a| a.name())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The width of the longest algorithm name, to align tables.
+fn algorithm_name_width() -> usize {
+    Algorithm::ALL
+        .iter()
+        .map(|a| a.name().len())
+        .max()
+        .unwrap_or(0)
+}
+
+/// `--physics`: a MuJoCo physics by name (`mujoco2`, `mujoco3`).
+fn parse_physics(name: &str) -> Result<Physics, String> {
+    name.parse()
+        .map_err(|e: apo_envs::mujoco::MujocoError| e.to_string())
+}
+
+/// `--algo`: an algorithm by name, with the closest name suggested.
+fn parse_algo(s: &str) -> Result<Algorithm, String> {
+    s.parse::<Algorithm>().map_err(|_| {
+        let names: Vec<&str> = Algorithm::ALL.iter().map(|a| a.name()).collect();
+        let best = names
+            .iter()
+            .map(|n| (strsim::jaro_winkler(n, &s.to_lowercase()), *n))
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .filter(|(score, _)| *score > 0.7)
+            .map(|(_, n)| format!("; did you mean `{n}`?"))
+            .unwrap_or_default();
+        format!(
+            "unknown algorithm `{s}`{best} (known: {})",
+            names.join(", ")
+        )
+    })
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    #[cfg(feature = "atari")]
+    if let Err(e) = apo_atari::register_games() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
+    let done = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
+    let result = match cli.command {
+        Command::Train(args) => train::train_on_ranks(args),
+        Command::List => done(list::run()),
+        Command::Eval(args) => done(eval::run(&args)),
+        Command::Config(args) => done(config::run(args)),
+        Command::Plot(args) => done(plot::run(&args)),
+        Command::Bench(command) => done(bench::run(command)),
+        Command::Sweep(args) => sweep::run(args),
+        Command::Theory(args) => done(apo_cli::theory::run(&args)),
+        Command::Report(args) => done(report::run(&args)),
+        Command::Summary(args) => done(summary::run(&args)),
+    };
+    result.unwrap_or_else(|e| {
+        eprintln!("error: {e:#}");
+        if let Some(hint) = atari_hint(&e) {
+            eprintln!("{hint}");
+        }
+        ExitCode::FAILURE
+    })
+}
+
+/// For an unknown `ALE/…` environment in a build without the `atari` feature: how to get the
+/// Atari games.
+fn atari_hint(error: &anyhow::Error) -> Option<&'static str> {
+    let unknown_game = error.chain().any(|cause| {
+        matches!(cause.downcast_ref::<apo_envs::EnvError>(),
+            Some(apo_envs::EnvError::Unknown { name, .. })
+                if name.get(..4).is_some_and(|ns| ns.eq_ignore_ascii_case("ALE/")))
+    });
+    (unknown_game && cfg!(not(feature = "atari"))).then_some(
+        "hint: the Atari games (`ALE/<Game>-v5`) are in builds with the `atari` feature \
+         (GPL-2.0): cargo build --release -p apo-cli --features atari",
+    )
+}
+
+/// Silences the Wayland client's "XDG_RUNTIME_DIR is invalid or not set" line, which
+/// `libwayland-client` prints when the Vulkan driver probes for a display and the variable is
+/// unset: apo never draws to a window, so it points the probe at a private, empty directory
+/// of its own (`<tmp>/apo-runtime-<uid>`, mode 0700, reused by later runs).
+fn quiet_wgpu() {
+    #[cfg(unix)]
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+        let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+            return;
+        };
+        let dir = std::env::temp_dir().join(format!("apo-runtime-{uid}"));
+        let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+        let private = std::fs::symlink_metadata(&dir)
+            .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0);
+        if private {
+            // SAFETY: called on the main thread before any other thread is started.
+            std::env::set_var("XDG_RUNTIME_DIR", &dir);
+        }
+    }
+}

@@ -1,0 +1,35 @@
+//! `apo plot`: learning curves of runs.
+
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct PlotArgs {
+    /// Run directories.
+    #[arg(required = true)]
+    runs: Vec<PathBuf>,
+    /// Output image, .png or .svg.
+    #[arg(long)]
+    out: PathBuf,
+    /// Moving average over this many epochs (1: none).
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
+    smooth: usize,
+    /// Plot this numeric progress.csv column instead of the returns (e.g. kl,
+    /// ls_rejected_objective, bias, min_j_sq_on).
+    #[arg(long)]
+    column: Option<String>,
+}
+
+pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
+    apo_cli::input::check_output_file(&args.out, "--out")?;
+    let runs = apo_cli::report::distinct_runs(&args.runs)?;
+    apo_cli::plot::plot(
+        &runs,
+        &args.out,
+        &apo_cli::plot::PlotOptions {
+            smooth: args.smooth,
+            column: args.column.clone(),
+        },
+    )?;
+    println!("wrote {}", args.out.display());
+    Ok(())
+}

@@ -1,0 +1,48 @@
+//! `apo report`: the paper's metrics per environment and algorithm over seeds.
+
+use std::path::PathBuf;
+
+use apo_cli::report;
+
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// Run directories, or folders of runs (a sweep's); seeds of one setting are grouped
+    /// by environment, algorithm and the directory name without `-s<seed>`. A run named twice
+    /// (directly and through its folder) counts once.
+    #[arg(required = true)]
+    runs: Vec<PathBuf>,
+    /// N of "the last N epochs" (paper: 20 continuous, 100 Atari).
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=1_000_000_000))]
+    last: u64,
+    /// Folder for report.md, report.csv and curves-<env>.<image>.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Episodes of the random policy that the scores are normalized by.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    random_episodes: u64,
+    /// Image format of the curves.
+    #[arg(long, value_parser = ["png", "svg"], default_value = "png")]
+    image: String,
+    /// Moving average of the curves over this many epochs (1: none).
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
+    smooth: usize,
+}
+
+pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
+    // every option is checked before any work
+    if let Some(out) = &args.out {
+        apo_cli::input::prepare_output_dir(out, "--out")?;
+    }
+    let runs = report::find_runs(&args.runs)?;
+    let episodes = args.random_episodes as usize;
+    let report = report::report(&runs, args.last as usize, &mut |env, options| {
+        report::random_baseline(env, options, episodes, 0)
+    })?;
+    print!("{}", report::markdown(&report));
+    if let Some(out) = &args.out {
+        for path in report::write(&report, out, &args.image, args.smooth)? {
+            eprintln!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}

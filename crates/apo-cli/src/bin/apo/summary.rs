@@ -1,0 +1,35 @@
+//! `apo summary`: the paper's metrics of each run.
+
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct SummaryArgs {
+    /// Run directories.
+    #[arg(required = true)]
+    runs: Vec<PathBuf>,
+    /// N of "the last N epochs" (paper: 20 continuous, 100 Atari).
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=1_000_000_000))]
+    last: u64,
+    /// CSV instead of an aligned table.
+    #[arg(long)]
+    csv: bool,
+}
+
+pub fn run(args: &SummaryArgs) -> anyhow::Result<()> {
+    let last = args.last as usize;
+    let rows = apo_cli::report::distinct_runs(&args.runs)?
+        .iter()
+        .map(|run| {
+            Ok((
+                run.display().to_string(),
+                apo_cli::summary::summarize(run, last)?,
+            ))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if args.csv {
+        print!("{}", apo_cli::summary::csv(&rows, last)?);
+    } else {
+        print!("{}", apo_cli::summary::table(&rows, last));
+    }
+    Ok(())
+}

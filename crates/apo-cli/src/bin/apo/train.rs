@@ -1,0 +1,470 @@
+//! `apo train`: a new run, or `--resume` of one, on one process or as a rank of an MPI job.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+
+use anyhow::{bail, Context};
+use apo_cli::config::{BackendKind, Preset, RunConfig};
+use apo_cli::progress::ProgressRow;
+use apo_cli::run_dir::{self, NewRunDir, RunLock};
+use apo_cli::trainer::{self, Observer, TrainEnd};
+use apo_core::Algorithm;
+use apo_envs::mujoco::Physics;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::signals::{interrupted_status, Signals};
+
+#[derive(clap::Args)]
+pub struct TrainArgs {
+    /// Algorithm [default with --config: the file's section [algo.<name>]].
+    #[arg(long, value_parser = crate::parse_algo)]
+    algo: Option<Algorithm>,
+    /// Environment name (see `apo list`).
+    #[arg(long)]
+    env: Option<String>,
+    /// Backend of the updates [config: backend; default cpu].
+    #[arg(long, value_enum)]
+    backend: Option<BackendKind>,
+    /// Physics of MuJoCo environments, mujoco2 or mujoco3 (builds with the `mujoco3` feature)
+    /// [config: physics; default mujoco2].
+    #[arg(long, value_parser = crate::parse_physics)]
+    physics: Option<Physics>,
+    /// TOML config file (keys as in a run's config.toml or `apo config`; defaults fill the rest).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Settings layered over the defaults and --config, under --set: `paper` reproduces the
+    /// paper's published code (`apo config --preset paper` shows them).
+    #[arg(long, value_enum)]
+    preset: Option<Preset>,
+    /// Seed [config: seed; default 0; 0..=9223372036854775807].
+    #[arg(long, value_parser = clap::value_parser!(u64).range(0..=i64::MAX as u64))]
+    seed: Option<u64>,
+    /// Number of epochs [config: epochs; default 200]; with --resume, the run's new target.
+    #[arg(long)]
+    epochs: Option<usize>,
+    /// Environment steps per epoch [config: steps_per_epoch; default 30000].
+    #[arg(long)]
+    steps_per_epoch: Option<usize>,
+    /// Environments stepped together [config: num_envs; default 1].
+    #[arg(long)]
+    num_envs: Option<usize>,
+    /// Threads that step the environments (0: the cores available); results do not depend
+    /// on it, so it may change on --resume.
+    #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+    threads: usize,
+    /// Write a checkpoint every N epochs [config: checkpoint_every; default 1].
+    #[arg(long, value_name = "N")]
+    checkpoint_every: Option<usize>,
+    /// Run directory [default: runs/<env>-<algo>-s<seed>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Override a config key, e.g. --set algo.k=5 (repeatable; see `apo config`).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+    /// Continue the run in this directory from its last checkpoint (--epochs may extend it).
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["algo", "env", "config", "preset", "out", "force"])]
+    resume: Option<PathBuf>,
+    /// Replace an existing run directory that apo made, removing only the files apo created
+    /// in it (anything else in it is kept).
+    #[arg(long)]
+    force: bool,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+impl TrainArgs {
+    /// The dedicated flags given, as `(config key, flag, value in TOML)`.
+    fn flags(&self, env: &str) -> Vec<(&'static str, &'static str, String)> {
+        let mut flags = vec![("env", "--env", format!("{env:?}"))];
+        let mut add = |key, flag, value: Option<String>| {
+            if let Some(v) = value {
+                flags.push((key, flag, v));
+            }
+        };
+        add("seed", "--seed", self.seed.map(|v| v.to_string()));
+        add("epochs", "--epochs", self.epochs.map(|v| v.to_string()));
+        add(
+            "steps_per_epoch",
+            "--steps-per-epoch",
+            self.steps_per_epoch.map(|v| v.to_string()),
+        );
+        add(
+            "num_envs",
+            "--num-envs",
+            self.num_envs.map(|v| v.to_string()),
+        );
+        add(
+            "checkpoint_every",
+            "--checkpoint-every",
+            self.checkpoint_every.map(|v| v.to_string()),
+        );
+        add(
+            "backend",
+            "--backend",
+            self.backend.map(|b| format!("\"{b}\"")),
+        );
+        add(
+            "physics",
+            "--physics",
+            self.physics.map(|p| format!("\"{p}\"")),
+        );
+        flags
+    }
+}
+
+/// Warns when a flag overrides a different value given for the same key by `--set` or the
+/// `--config` file (the flag wins; the warning says which value was dropped).
+fn warn_overridden(flags: &[(&str, &str, String)], sets: &[String], file: Option<&Path>) {
+    let file_table = file.and_then(|p| {
+        apo_cli::input::read_text(p, "config file", apo_cli::input::SMALL_FILE)
+            .ok()?
+            .parse::<toml::Table>()
+            .ok()
+    });
+    for (key, flag, value) in flags {
+        let flagged = apo_cli::config::parse_value(value);
+        for set in sets {
+            if let Some((k, v)) = set.split_once('=') {
+                if k.trim() == *key && apo_cli::config::parse_value(v.trim()) != flagged {
+                    eprintln!("warning: {flag} {value} overrides --set {set}");
+                }
+            }
+        }
+        if let (Some(table), Some(path)) = (&file_table, file) {
+            if let Some(v) = table.get(*key).filter(|v| **v != flagged) {
+                eprintln!(
+                    "warning: {flag} {value} overrides {key} = {v} of --config {}",
+                    path.display()
+                );
+            }
+        }
+    }
+}
+
+/// `apo train`, as one rank of an MPI job when started by `mpirun` (feature `mpi`). An error
+/// on any rank ends the whole job.
+#[cfg(feature = "mpi")]
+pub fn train_on_ranks(args: TrainArgs) -> anyhow::Result<ExitCode> {
+    let mpi = apo_cli::mpi::Mpi::init()?;
+    let comm = mpi.comm();
+    let result = train(args, &comm);
+    if comm.is_distributed() {
+        let traffic = mpi.traffic();
+        tracing::info!(
+            rank = comm.rank(),
+            calls = traffic.calls,
+            bytes = traffic.bytes,
+            seconds = traffic.seconds,
+            "MPI collectives of this rank"
+        );
+        if comm.rank() == 0 && result.is_ok() {
+            println!(
+                "MPI: {} ranks; rank 0 made {} collective calls, sent {:.1} MB, spent {:.2} s in them",
+                comm.size(),
+                traffic.calls,
+                traffic.bytes as f64 / 1e6,
+                traffic.seconds
+            );
+        }
+        if let Err(e) = &result {
+            eprintln!("error (MPI rank {} of {}): {e:#}", comm.rank(), comm.size());
+            eprintln!("ending every rank of the job");
+            mpi.abort(1);
+        }
+    }
+    result
+}
+
+/// `apo train` in one process (built without the `mpi` feature).
+#[cfg(not(feature = "mpi"))]
+pub fn train_on_ranks(args: TrainArgs) -> anyhow::Result<ExitCode> {
+    train(args, &apo_core::Comm::default())
+}
+
+/// `apo train` on rank `comm.rank()`: rank 0 creates (or locks) the run directory and writes
+/// in it; the other ranks build the same configuration and only read.
+fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
+    let writer = comm.rank() == 0;
+    let mut fresh = None;
+    let (config, run_dir, resume, _lock) = match &args.resume {
+        Some(dir) => {
+            if args.seed.is_some()
+                || args.steps_per_epoch.is_some()
+                || args.backend.is_some()
+                || args.physics.is_some()
+                || args.num_envs.is_some()
+                || args.checkpoint_every.is_some()
+                || !args.sets.is_empty()
+            {
+                bail!(
+                    "--resume continues a run with its own config.toml; only --epochs may change"
+                );
+            }
+            let config_path = dir.join(run_dir::CONFIG);
+            let mut config = run_dir::check_resumable(dir)?;
+            let lock = writer.then(|| RunLock::acquire(dir)).transpose()?;
+            let spec = apo_envs::registry::spec(&config.train.env)?;
+            if let Some(epochs) = args.epochs {
+                config.train.epochs = epochs;
+                config.validate()?;
+            }
+            config.check_memory(
+                spec.observation_dim,
+                apo_train::action_kind(&spec.action_space),
+            )?;
+            if args.epochs.is_some() && writer {
+                // the new target is part of the run: a later plain --resume continues to it
+                apo_cli::atomic::write(&config_path, config.to_toml().as_bytes())
+                    .with_context(|| format!("cannot write {}", config_path.display()))?;
+            }
+            (config, dir.clone(), true, lock)
+        }
+        None => {
+            let from_file = match &args.config {
+                Some(path) => apo_cli::config::file_algorithm(path)?,
+                None => None,
+            };
+            let algo = args.algo.or(from_file).with_context(|| {
+                format!(
+                    "--algo is required ({}), or a --config file with an [algo.<name>] section",
+                    crate::algorithm_names()
+                )
+            })?;
+            let env = args
+                .env
+                .clone()
+                .context("--env is required (see `apo list`)")?;
+            let spec = apo_envs::registry::spec(&env)?;
+            let flags = args.flags(&env);
+            warn_overridden(&flags, &args.sets, args.config.as_deref());
+            let mut sets = args.sets.clone();
+            sets.extend(flags.iter().map(|(k, _, v)| format!("{k}={v}")));
+            let config = RunConfig::build_with_preset(
+                algo,
+                &env,
+                args.preset,
+                args.config.as_deref(),
+                &sets,
+            )?;
+            config.check_memory(
+                spec.observation_dim,
+                apo_train::action_kind(&spec.action_space),
+            )?;
+            let dir = args.out.clone().unwrap_or_else(|| {
+                PathBuf::from(format!(
+                    "runs/{}-{}-s{}",
+                    run_dir::env_label(&config.train.env),
+                    algo,
+                    config.train.seed
+                ))
+            });
+            if !writer {
+                // rank 0 prepares the directory and writes its files
+                return run_training(&config, &dir, false, args.threads, true, comm);
+            }
+            let mut prepared = NewRunDir::prepare(&dir, args.force)?;
+            let lock = Some(prepared.take_lock().context("the run directory's lock")?);
+            let config_path = dir.join(run_dir::CONFIG);
+            let written =
+                run_dir::claim_new(&dir, &[run_dir::CONFIG, run_dir::LOG]).and_then(|()| {
+                    apo_cli::atomic::write(&config_path, config.to_toml().as_bytes())
+                        .with_context(|| format!("cannot write {}", config_path.display()))
+                });
+            if let Err(e) = written {
+                prepared.discard();
+                return Err(e);
+            }
+            fresh = Some(prepared);
+            (config, dir, false, lock)
+        }
+    };
+    let quiet = args.quiet || !writer;
+    let result = run_training(&config, &run_dir, resume, args.threads, quiet, comm);
+    if result.is_err() && !run_dir.join(run_dir::PROGRESS).exists() {
+        // a new run that failed before its first epoch leaves nothing behind
+        if let Some(prepared) = fresh {
+            drop(_lock);
+            prepared.discard();
+        }
+    }
+    result
+}
+
+fn run_training(
+    config: &RunConfig,
+    run_dir: &Path,
+    resume: bool,
+    threads: usize,
+    quiet: bool,
+    comm: &apo_core::Comm,
+) -> anyhow::Result<ExitCode> {
+    // the run's log is rank 0's; the other ranks log to stderr only
+    init_logging((comm.rank() == 0).then_some(run_dir))?;
+    let signals = Signals::install()?;
+    let mut bar = Bar::new(quiet, config);
+    let launch = trainer::Launch {
+        resume,
+        threads,
+        comm: comm.clone(),
+    };
+    let end = match config.backend {
+        BackendKind::Cpu => trainer::train::<burn::backend::NdArray>(
+            config,
+            run_dir,
+            &Default::default(),
+            &launch,
+            &signals.stop,
+            &mut bar,
+        ),
+        BackendKind::Wgpu => {
+            crate::quiet_wgpu();
+            trainer::train::<burn::backend::Wgpu>(
+                config,
+                run_dir,
+                &Default::default(),
+                &launch,
+                &signals.stop,
+                &mut bar,
+            )
+        }
+    };
+    if let Some(bar) = &bar.bar {
+        bar.abandon();
+    }
+    match end? {
+        TrainEnd::Finished => {
+            if comm.rank() == 0 {
+                println!("run finished: {}", run_dir.display());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        TrainEnd::Interrupted { epoch } => {
+            let signal = signals.which.load(Ordering::SeqCst);
+            let name = match signal {
+                s if s == signal_hook::consts::SIGTERM as usize => "SIGTERM",
+                _ => "SIGINT",
+            };
+            if comm.rank() == 0 {
+                let launcher = if comm.is_distributed() {
+                    format!("mpirun -n {} ", comm.size())
+                } else {
+                    String::new()
+                };
+                println!(
+                    "interrupted by {name} after epoch {epoch} of {}; checkpoint written. Continue with: {launcher}apo train --resume {}",
+                    config.train.epochs,
+                    run_dir.display()
+                );
+            }
+            Ok(ExitCode::from(interrupted_status(signal)))
+        }
+    }
+}
+
+/// The progress bar: environment steps of the whole run, with the epoch, speed, returns and ETA.
+struct Bar {
+    bar: Option<ProgressBar>,
+    epochs: usize,
+    epoch: usize,
+    started: bool,
+    last: String,
+}
+
+impl Bar {
+    fn new(quiet: bool, config: &RunConfig) -> Self {
+        let total = (config.train.steps_per_epoch.div_ceil(config.train.num_envs) as u64)
+            .saturating_mul(config.train.num_envs as u64)
+            .saturating_mul(config.train.epochs as u64);
+        let bar = (!quiet).then(|| {
+            let bar = ProgressBar::new(total);
+            bar.set_style(
+                ProgressStyle::with_template("{bar:30} {human_pos}/{human_len} steps [{elapsed_precise}, ETA {eta_precise}] {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            bar
+        });
+        Self {
+            bar,
+            epochs: config.train.epochs,
+            epoch: 0,
+            started: false,
+            last: String::new(),
+        }
+    }
+}
+
+impl Observer for Bar {
+    fn steps(&mut self, env_steps: u64) {
+        if let Some(bar) = &self.bar {
+            bar.set_position(env_steps);
+            if !self.started {
+                // a resumed run starts part-way: measure the rate from here
+                bar.reset_eta();
+                self.started = true;
+            }
+            bar.set_message(format!(
+                "epoch {}/{}{}",
+                self.epoch + 1,
+                self.epochs,
+                self.last
+            ));
+        }
+    }
+
+    fn epoch(&mut self, row: &ProgressRow, epochs: usize) {
+        self.epoch = row.epoch;
+        self.epochs = epochs;
+        let fmt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+        self.last = format!(
+            " · {:.0} steps/s · return mean {} min {}",
+            row.steps_per_s,
+            fmt(row.ep_ret_mean),
+            fmt(row.ep_ret_min)
+        );
+        if let Some(bar) = &self.bar {
+            bar.set_position(row.env_steps);
+            bar.set_message(format!("epoch {}/{}{}", row.epoch, epochs, self.last));
+        }
+    }
+}
+
+fn init_logging(run_dir: Option<&Path>) -> anyhow::Result<()> {
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
+    use tracing_subscriber::{fmt, EnvFilter, Layer};
+    let file = match run_dir {
+        Some(run_dir) => {
+            let path = run_dir.join(run_dir::LOG);
+            Some(
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(&path)
+                    .with_context(|| format!("cannot open {}", path.display()))?,
+            )
+        }
+        None => None,
+    };
+    let stderr_filter =
+        EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("warn"));
+    let ansi = std::io::stderr().is_terminal();
+    tracing_subscriber::registry()
+        .with(file.map(|file| {
+            fmt::layer()
+                .with_writer(std::sync::Mutex::new(file))
+                .with_ansi(false)
+                .with_filter(EnvFilter::new("info"))
+        }))
+        .with(
+            fmt::layer()
+                .with_writer(std::io::stderr)
+                .with_ansi(ansi)
+                .with_filter(stderr_filter),
+        )
+        .try_init()
+        .ok();
+    Ok(())
+}
