@@ -3,7 +3,7 @@
 # environment, random actions, through the registry with its wrappers) on MuJoCo 2.2.2 and on
 # MuJoCo 3.17, the median of REPEATS runs (default 3), alternating the two.
 #   bash scripts/bench-physics.sh [STEPS] [ENV...]   (default 20000 steps; every Gym task, three
-#   GUARD suites and the three hands). Needs `scripts/setup.sh --mujoco3`; builds apo with the feature.
+#   GUARD suites and the three hands). Needs `scripts/setup.sh` (which fetches MuJoCo 3.17); builds apo with the feature.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 steps=${1:-20000}

@@ -450,6 +450,15 @@ pub fn load<B: Backend>(
             shapes.normalize_obs
         ),
     }
+    // Burn reads the records whole: regular files only (a format-1 checkpoint has no
+    // manifest whose sizes were checked)
+    for name in RECORDS {
+        crate::input::check_file(
+            &from.join(format!("{name}.mpk")),
+            "checkpoint file",
+            u64::MAX,
+        )?;
+    }
     let rec = recorder();
     let (policy, value) = learner.networks();
     let (policy_optim, value_optim) = learner.optimizers();

@@ -577,8 +577,13 @@ pub fn csv(report: &Report) -> anyhow::Result<String> {
     Ok(String::from_utf8(bytes)?)
 }
 
+/// The marker of a report folder: the files `apo report` wrote there.
+pub const REPORT_MARKER: &str = ".apo-report";
+
 /// Writes `report.md`, `report.csv` and one `curves-<env>.<ext>` per environment into `out`
-/// (created if missing), returning the files written.
+/// (created if missing), returning the files written. A file of one of these names that an
+/// earlier report did not write (see [`REPORT_MARKER`]) is never overwritten: that is an error
+/// before anything is written.
 ///
 /// # Errors
 /// When a file cannot be written or a plot drawn.
@@ -589,6 +594,12 @@ pub fn write(
     smooth: usize,
 ) -> anyhow::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut envs: Vec<&str> = report.groups.iter().map(|g| g.env.as_str()).collect();
+    envs.dedup();
+    let curves = |env: &str| format!("curves-{}.{image}", run_dir::env_label(env));
+    let mut names = vec!["report.md".to_string(), "report.csv".to_string()];
+    names.extend(envs.iter().map(|env| curves(env)));
+    run_dir::claim_outputs(out, REPORT_MARKER, &names)?;
     let mut written = Vec::new();
     for (name, text) in [
         ("report.md", markdown(report)),
@@ -599,8 +610,6 @@ pub fn write(
             .with_context(|| format!("cannot write {}", path.display()))?;
         written.push(path);
     }
-    let mut envs: Vec<&str> = report.groups.iter().map(|g| g.env.as_str()).collect();
-    envs.dedup();
     for env in envs {
         let groups: Vec<(String, Vec<PathBuf>)> = report
             .groups
@@ -611,7 +620,7 @@ pub fn write(
         if groups.is_empty() {
             continue;
         }
-        let path = out.join(format!("curves-{}.{image}", run_dir::env_label(env)));
+        let path = out.join(curves(env));
         crate::plot::plot_seed_groups(
             &groups,
             &path,

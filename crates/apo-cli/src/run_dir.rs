@@ -57,7 +57,16 @@ const FIXED: [&str; 4] = [CONFIG, PROGRESS, LOG, CHECKPOINTS];
 /// # Errors
 /// A marker that cannot be read.
 pub fn created_entries(dir: &Path) -> anyhow::Result<Option<BTreeSet<String>>> {
-    let path = dir.join(MARKER);
+    created_entries_in(dir, MARKER)
+}
+
+/// The entries listed in the marker file `marker` of `dir` (a run directory's `.apo-run`, a
+/// report folder's `.apo-report`); `None` without one.
+///
+/// # Errors
+/// A marker that cannot be read.
+pub fn created_entries_in(dir: &Path, marker: &str) -> anyhow::Result<Option<BTreeSet<String>>> {
+    let path = dir.join(marker);
     if std::fs::symlink_metadata(&path).is_err() {
         return Ok(None);
     }
@@ -74,12 +83,16 @@ pub fn created_entries(dir: &Path) -> anyhow::Result<Option<BTreeSet<String>>> {
 }
 
 fn write_marker(dir: &Path, entries: &BTreeSet<String>) -> anyhow::Result<()> {
+    write_marker_in(dir, MARKER, entries)
+}
+
+fn write_marker_in(dir: &Path, marker: &str, entries: &BTreeSet<String>) -> anyhow::Result<()> {
     let mut text = format!("{MARKER_HEADER}\n");
     for e in entries {
         text.push_str(e);
         text.push('\n');
     }
-    let path = dir.join(MARKER);
+    let path = dir.join(marker);
     crate::atomic::write(&path, text.as_bytes())
         .with_context(|| format!("cannot write {}", path.display()))
 }
@@ -112,6 +125,40 @@ pub fn claim_new(dir: &Path, names: &[&str]) -> anyhow::Result<()> {
     }
     if entries.len() != before || !dir.join(MARKER).exists() {
         write_marker(dir, &entries)?;
+    }
+    Ok(())
+}
+
+/// Before apo writes the files `names` into the output folder `dir` (chosen by the user, named
+/// by apo: `report.md`, …), checks that none of them exists unless an earlier apo wrote it
+/// (listed in `dir/marker`), then lists them there: apo overwrites its own outputs, never a
+/// user's file of the same name.
+///
+/// # Errors
+/// Naming a file apo would overwrite but did not write, or when the marker cannot be written.
+pub fn claim_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Result<()> {
+    check_outputs(dir, marker, names)?;
+    let mut listed = created_entries_in(dir, marker)?.unwrap_or_default();
+    listed.extend(names.iter().cloned());
+    write_marker_in(dir, marker, &listed)
+}
+
+/// The check of [`claim_outputs`] alone (nothing written), for a command to fail before its work.
+///
+/// # Errors
+/// Naming a file apo would overwrite but did not write.
+pub fn check_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Result<()> {
+    let listed = created_entries_in(dir, marker)?.unwrap_or_default();
+    if let Some(foreign) = names
+        .iter()
+        .find(|n| !listed.contains(*n) && std::fs::symlink_metadata(dir.join(n)).is_ok())
+    {
+        bail!(
+            "{} exists and was not written by apo (not listed in {}); apo does not overwrite it: \
+             move it away or choose another --out",
+            dir.join(foreign).display(),
+            dir.join(marker).display()
+        );
     }
     Ok(())
 }

@@ -343,7 +343,7 @@ pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<
             }
             for cell in cells {
                 for &seed in &spec.seeds {
-                    let mut name = format!("{}-{algo}", run_dir::env_label(&env_name));
+                    let mut name = format!("{}-{algo}", run_dir::env_label(env_name));
                     for ((_, v), axis) in cell.iter().zip(&axes) {
                         let v: String = v
                             .chars()

@@ -554,6 +554,42 @@ fn report_and_summary_count_each_run_once_and_leave_out_bad_rows() {
     let one = runs.join("CartPole-v1-ppo-s0");
     let report = ok(&["report", path(&runs), path(&one), "--random-episodes", "1"]);
     assert!(report.contains("| ppo | 2 |"), "{report}");
+    // a report folder: apo rewrites its own report, never a user's file of the same name
+    let folder = tmp.path().join("folder");
+    ok(&[
+        "report",
+        path(&runs),
+        "--random-episodes",
+        "1",
+        "--out",
+        path(&folder),
+    ]);
+    ok(&[
+        "report",
+        path(&runs),
+        "--random-episodes",
+        "1",
+        "--out",
+        path(&folder),
+    ]);
+    let mine = tmp.path().join("mine");
+    plant(&mine, "report.md", "my own report");
+    let err = fails(&[
+        "report",
+        path(&runs),
+        "--random-episodes",
+        "1",
+        "--out",
+        path(&mine),
+    ]);
+    assert!(
+        err.contains("report.md") && err.contains("not written by apo"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(mine.join("report.md")).expect("kept"),
+        "my own report"
+    );
     // a non-finite and a duplicated epoch row: left out with a warning, never a NaN in a table
     let progress = one.join("progress.csv");
     let csv = std::fs::read_to_string(&progress).expect("read");
@@ -592,7 +628,7 @@ fn report_and_summary_count_each_run_once_and_leave_out_bad_rows() {
 }
 
 #[test]
-fn checkpoints_without_a_manifest_of_this_format_or_with_non_finite_parameters_are_refused() {
+fn a_checkpoint_without_its_manifest_or_of_another_manifest_format_is_refused() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
     small(&run, &[]);
@@ -745,5 +781,69 @@ fn errors_name_the_culprit_and_are_said_once() {
         text(&out.stderr).contains("--seed 3 overrides --set seed=4"),
         "{}",
         text(&out.stderr)
+    );
+}
+
+#[test]
+fn a_checkpoint_with_non_finite_parameters_is_refused() {
+    use apo_cli::checkpoint::{self, Which};
+    use apo_cli::config::RunConfig;
+    use apo_core::{ActionKind, Learner};
+    use burn::backend::NdArray;
+    use burn::module::Module;
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    // the run's checkpoint, loaded and written back with one NaN in the policy (as a
+    // corrupted or foreign writer could leave it; apo's own training never saves one)
+    let config = RunConfig::load(&run.join("config.toml")).expect("config");
+    let action = ActionKind::Discrete { n: 2 };
+    let device = Default::default();
+    let mut learner = Learner::<NdArray, _>::new(
+        config.train.mlp_policy(4, action),
+        action,
+        &config.train.value(4),
+        config.train.algo.clone(),
+        &device,
+        0,
+    )
+    .expect("learner");
+    let shapes = apo_cli::trainer::shapes(&config, 4, action);
+    let from = checkpoint::locate(&run, &Which::Latest)
+        .expect("locate")
+        .expect("latest");
+    let state = checkpoint::load(&from, &mut learner, &shapes, &device).expect("load");
+    let (policy, value) = learner.networks();
+    let (policy_optim, value_optim) = learner.optimizers();
+    let mut theta = learner.policy_params();
+    theta[0] = f64::NAN;
+    let theta = burn::tensor::Tensor::from_floats(
+        theta
+            .iter()
+            .map(|&v| v as f32)
+            .collect::<Vec<_>>()
+            .as_slice(),
+        &device,
+    );
+    let poisoned = apo_core::flat::unflatten(policy.clone(), theta);
+    assert_eq!(poisoned.num_params(), policy.num_params());
+    let (value, policy_optim, value_optim) =
+        (value.clone(), policy_optim.clone(), value_optim.clone());
+    learner.restore(poisoned, value, policy_optim, value_optim);
+    checkpoint::save(&run, &learner, &state, &shapes, false).expect("save");
+    for args in [
+        vec!["eval", "--run", path(&run)],
+        vec!["train", "--resume", path(&run), "--epochs", "2", "--quiet"],
+    ] {
+        let err = fails(&args);
+        assert!(
+            err.contains("non-finite policy parameter") && err.contains("policy.mpk"),
+            "{args:?}: {err}"
+        );
+    }
+    assert_eq!(
+        super::timeless(&run).len(),
+        1,
+        "the refused resume wrote nothing"
     );
 }

@@ -32,6 +32,8 @@ pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     // every option is checked before any work
     if let Some(out) = &args.out {
         apo_cli::input::prepare_output_dir(out, "--out")?;
+        let fixed = ["report.md".to_string(), "report.csv".to_string()];
+        apo_cli::run_dir::check_outputs(out, report::REPORT_MARKER, &fixed)?;
     }
     let runs = report::find_runs(&args.runs)?;
     let episodes = args.random_episodes as usize;
