@@ -141,9 +141,12 @@ fn recorder() -> Rec {
     NamedMpkFileRecorder::<FullPrecisionSettings>::new()
 }
 
+/// The folder of a run directory that holds its checkpoints.
+pub const FOLDER: &str = "checkpoints";
+
 /// `checkpoints/` of a run directory.
 pub fn dir(run: &Path) -> PathBuf {
-    run.join(crate::run_dir::CHECKPOINTS)
+    run.join(FOLDER)
 }
 
 /// Which checkpoint of a run to read.
@@ -247,7 +250,7 @@ fn clear(path: &Path) -> anyhow::Result<()> {
     if std::fs::symlink_metadata(path).is_err() {
         return Ok(());
     }
-    let left = crate::run_dir::remove_created(path, &checkpoint_files(), true)?;
+    let left = crate::removal::remove_created(path, &checkpoint_files(), true)?;
     if left.is_empty() {
         return Ok(());
     }
@@ -289,10 +292,10 @@ pub fn remove_checkpoints(root: &Path) -> anyhow::Result<()> {
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         if is_checkpoint_name(&name) && entry.file_type().is_ok_and(|t| t.is_dir()) {
-            crate::run_dir::remove_created(&entry.path(), &files, true)?;
+            crate::removal::remove_created(&entry.path(), &files, true)?;
         }
     }
-    crate::run_dir::remove_created(root, &[], true)?;
+    crate::removal::remove_created(root, &[], true)?;
     Ok(())
 }
 

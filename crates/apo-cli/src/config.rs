@@ -429,24 +429,39 @@ const MEASURE_ENVS_ABOVE: usize = 128;
 
 impl RunConfig {
     /// The memory one environment of the run takes, in bytes: [`ENV_BYTES_BOUND`] for a run of
-    /// at most [`MEASURE_ENVS_ABOVE`] environments; for more, measured by making three of them
-    /// (the growth of this process's virtual memory per environment after the first, × 1.25;
-    /// MuJoCo's model and `mjData` arena are most of it).
+    /// at most [`MEASURE_ENVS_ABOVE`] environments; for more, measured: the growth of this
+    /// process's resident memory per environment when two more are made, reset and stepped 20
+    /// times after a first one (which pays for loading the library), × 1.25. MuJoCo's model and
+    /// `mjData` arena are most of it; never below 1 MiB, since the allocator can reuse memory.
     pub fn env_bytes(&self) -> f64 {
         if self.train.num_envs <= MEASURE_ENVS_ABOVE {
             return ENV_BYTES_BOUND;
         }
         let options = self.train.make_options();
+        let exercised = || -> Option<Box<dyn apo_envs::Env>> {
+            let mut env = apo_envs::make_with(&self.train.env, &options).ok()?;
+            let mut obs = vec![0.0f32; env.observation_space().flat_dim()];
+            let zeros = vec![0.0f32; env.action_space().flat_dim()];
+            env.reset(Some(0), &mut obs);
+            for _ in 0..20 {
+                let action = match env.action_space() {
+                    apo_envs::Space::Discrete { .. } => apo_envs::Action::Discrete(0),
+                    apo_envs::Space::Box { .. } => apo_envs::Action::Continuous(&zeros),
+                };
+                let t = env.step(action, &mut obs);
+                if t.terminated || t.truncated {
+                    env.reset(Some(0), &mut obs);
+                }
+            }
+            Some(env)
+        };
         let measured = (|| {
-            let _warm = apo_envs::make_with(&self.train.env, &options).ok()?;
-            let before = crate::input::virtual_memory()?;
-            let _more: Vec<_> = (0..2)
-                .map(|_| apo_envs::make_with(&self.train.env, &options).ok())
-                .collect::<Option<_>>()?;
-            let after = crate::input::virtual_memory()?;
+            let _warm = exercised()?;
+            let before = crate::input::resident_memory()?;
+            let _more = [exercised()?, exercised()?];
+            let after = crate::input::resident_memory()?;
             Some(after.saturating_sub(before) as f64 / 2.0 * 1.25)
         })();
-        // never below 1 MiB: allocator reuse can hide part of an environment
         measured.map_or(ENV_BYTES_BOUND, |b| b.max((1u64 << 20) as f64))
     }
 }

@@ -125,7 +125,7 @@ fn check_writable(dir: &Path) -> anyhow::Result<()> {
         .create_new(true)
         .open(&probe)
         .map_err(anyhow::Error::from)?;
-    crate::run_dir::remove_created(dir, &[probe_name(&probe)], false)?;
+    crate::removal::remove_created(dir, &[probe_name(&probe)], false)?;
     Ok(())
 }
 
@@ -150,10 +150,10 @@ pub fn physical_memory() -> u64 {
     read().unwrap_or(MEMORY_WITHOUT_PROC)
 }
 
-/// This process's virtual memory in bytes (the first field of `/proc/self/statm`).
-pub fn virtual_memory() -> Option<u64> {
+/// This process's resident memory in bytes (the second field of `/proc/self/statm`).
+pub fn resident_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/self/statm").ok()?;
-    let pages: u64 = text.split_whitespace().next()?.parse().ok()?;
+    let pages: u64 = text.split_whitespace().nth(1)?.parse().ok()?;
     // SAFETY: sysconf has no preconditions
     let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
     Some(pages * u64::try_from(page).ok()?)

@@ -11,6 +11,7 @@ pub mod input;
 pub mod mpi;
 pub mod plot;
 pub mod progress;
+pub mod removal;
 pub mod report;
 pub mod run_dir;
 pub mod summary;

@@ -7,7 +7,7 @@
 //! entry is listed only when apo created it, never when it was there before. Inside
 //! `checkpoints/` apo owns the checkpoint folders it names (`latest`, `previous`,
 //! `epoch-<N>`, `.tmp-*`) and, inside them, the files a checkpoint consists of. Every removal
-//! goes through [`remove_created`]: it deletes the named *files* (never a directory with what
+//! goes through [`crate::removal::remove_created`]: it deletes the named *files* (never a directory with what
 //! is in it) and removes a folder only once it is empty, so a user's file anywhere under a run
 //! directory survives `--force`, a failed start, a sweep re-run and checkpoint rotation.
 //!
@@ -39,7 +39,7 @@ pub const LOG: &str = "train.log";
 /// The lock file held while a training runs.
 pub const LOCK: &str = "apo.lock";
 /// The checkpoints folder.
-pub const CHECKPOINTS: &str = "checkpoints";
+pub const CHECKPOINTS: &str = crate::checkpoint::FOLDER;
 /// TensorBoard event files start with this.
 pub const EVENTS_PREFIX: &str = "events.out.tfevents.";
 /// The marker of a run directory: the entries apo created in it, one per line.
@@ -190,41 +190,6 @@ pub fn check_resumable(dir: &Path) -> anyhow::Result<RunConfig> {
     Ok(config)
 }
 
-/// Removes the files `names` from `dir` (a name that is missing is skipped; a directory of
-/// that name is left alone unless it is empty), then `dir` itself when `remove_dir` and it is
-/// empty. Returns the entries left in `dir`. This is the only function through which apo
-/// deletes anything: it never removes a folder with something in it.
-///
-/// # Errors
-/// When a file exists but cannot be removed.
-pub fn remove_created(
-    dir: &Path,
-    names: &[String],
-    remove_dir: bool,
-) -> anyhow::Result<Vec<String>> {
-    for name in names {
-        let path = dir.join(name);
-        let Ok(meta) = std::fs::symlink_metadata(&path) else {
-            continue;
-        };
-        if meta.is_dir() {
-            // only an empty one; what is inside was not listed
-            let _ = std::fs::remove_dir(&path);
-        } else {
-            std::fs::remove_file(&path)
-                .with_context(|| format!("cannot remove {}", path.display()))?;
-        }
-    }
-    let left = match entry_names(dir) {
-        Ok(left) => left,
-        Err(_) => return Ok(Vec::new()),
-    };
-    if remove_dir && left.is_empty() {
-        std::fs::remove_dir(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
-    }
-    Ok(left)
-}
-
 /// Removes what apo created in the run directory `dir` (the entries of its marker, the
 /// checkpoints apo wrote in `checkpoints/`, apo's temporary files) and the marker. The lock
 /// file stays while it is held (a new process could otherwise lock a new file beside it):
@@ -250,7 +215,7 @@ pub fn remove_run_files(
     }
     names.push(crate::atomic::temp_name(MARKER));
     names.push(MARKER.to_string());
-    let mut left = remove_created(dir, &names, remove_dir)?;
+    let mut left = crate::removal::remove_created(dir, &names, remove_dir)?;
     left.retain(|n| n != LOCK);
     Ok(left)
 }
@@ -335,7 +300,7 @@ impl NewRunDir {
                 dir.display()
             );
         }
-        let entries = entry_names(dir)?;
+        let entries = crate::removal::entry_names(dir)?;
         if entries.iter().all(|n| n == LOCK || n == MARKER) {
             claim_new(dir, &[LOCK])?;
             let lock = RunLock::acquire(dir)?;
@@ -415,16 +380,6 @@ impl NewRunDir {
             eprintln!("warning: cleaning up {}: {e:#}", self.dir.display());
         }
     }
-}
-
-fn entry_names(dir: &Path) -> anyhow::Result<Vec<String>> {
-    let mut names = std::fs::read_dir(dir)
-        .with_context(|| format!("cannot read {}", dir.display()))?
-        .map(|e| e.map(|e| e.file_name().to_string_lossy().into_owned()))
-        .collect::<Result<Vec<_>, _>>()
-        .with_context(|| format!("cannot read {}", dir.display()))?;
-    names.sort();
-    Ok(names)
 }
 
 #[cfg(test)]

@@ -302,12 +302,17 @@ fn sizes_are_checked_before_anything_is_created() {
     for (flags, culprit) in [
         (
             vec!["--steps-per-epoch", "1000000000000"],
+            "--steps-per-epoch",
+        ),
+        (
+            vec!["--set", "steps_per_epoch=1000000000000"],
             "steps_per_epoch",
         ),
         (vec!["--set", "hidden=[1000000000]"], "hidden"),
         (vec!["--set", "hidden=[1000000, 1000000]"], "GiB of memory"),
+        (vec!["--num-envs", "1000000000000"], "1..=65536"),
         (
-            vec!["--num-envs", "1000000000000"],
+            vec!["--set", "num_envs=1000000000000"],
             "`num_envs` = 1000000000000",
         ),
         (vec!["--set", "init_log_std=1e30"], "init_log_std"),

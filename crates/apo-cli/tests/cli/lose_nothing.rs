@@ -782,6 +782,69 @@ fn errors_name_the_culprit_and_are_said_once() {
         "{}",
         text(&out.stderr)
     );
+    // … and a flag that overrides the --config file's value
+    let file = tmp.path().join("seeded.toml");
+    std::fs::write(&file, "seed = 9\n").expect("write");
+    let w2 = tmp.path().join("w2");
+    let out = apo(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--seed",
+        "3",
+        "--config",
+        path(&file),
+        "--quiet",
+        "--out",
+        path(&w2),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("--seed 3 overrides seed = 9 of --config"),
+        "{}",
+        text(&out.stderr)
+    );
+    // an epoch count past any budget: refused with the rule, before a directory exists
+    let never = tmp.path().join("never");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "18446744073709551615",
+        "--out",
+        path(&never),
+    ]);
+    assert!(
+        err.contains("--epochs") && err.contains("1..=1000000000"),
+        "{err}"
+    );
+    // … and one past the budget in a config file: the config's rule
+    std::fs::write(&file, "epochs = 2000000000\n").expect("write");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--config",
+        path(&file),
+        "--out",
+        path(&never),
+    ]);
+    assert!(
+        err.contains("`epochs`") && err.contains("must be ≤ 1000000000"),
+        "{err}"
+    );
+    assert!(!never.exists());
 }
 
 #[test]

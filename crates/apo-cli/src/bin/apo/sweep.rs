@@ -36,7 +36,7 @@ pub struct SweepArgs {
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=apo_train::config::MAX_EPOCHS as u64))]
     epochs: u64,
     /// Environment steps per epoch of every run [default: the config's].
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
     /// Preset of every run.
     #[arg(long, value_enum)]

@@ -42,13 +42,13 @@ pub struct TrainArgs {
     #[arg(long, value_parser = clap::value_parser!(u64).range(0..=i64::MAX as u64))]
     seed: Option<u64>,
     /// Number of epochs [config: epochs; default 200]; with --resume, the run's new target.
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_EPOCHS as u64))]
     epochs: Option<usize>,
     /// Environment steps per epoch [config: steps_per_epoch; default 30000].
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
     /// Environments stepped together [config: num_envs; default 1].
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_NUM_ENVS as u64))]
     num_envs: Option<usize>,
     /// Threads that step the environments (0: the cores available); results do not depend
     /// on it, so it may change on --resume.
