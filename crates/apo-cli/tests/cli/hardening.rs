@@ -5,27 +5,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::{apo, fails, ok, path, timeless};
-
-/// A one-epoch CartPole run of 200 steps in `dir` (`extra` appended).
-fn small(dir: &Path, extra: &[&str]) -> String {
-    let mut args = vec![
-        "train",
-        "--algo",
-        "ppo",
-        "--env",
-        "CartPole-v1",
-        "--epochs",
-        "1",
-        "--steps-per-epoch",
-        "200",
-        "--quiet",
-        "--out",
-        path(dir),
-    ];
-    args.extend_from_slice(extra);
-    ok(&args)
-}
+use super::{apo, fails, ok, path, small, timeless};
 
 fn spawn(args: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_apo"))

@@ -6,27 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::{apo, fails, ok, path};
-
-/// A one-epoch CartPole PPO run of 200 steps in `dir` (`extra` appended).
-fn small(dir: &Path, extra: &[&str]) -> String {
-    let mut args = vec![
-        "train",
-        "--algo",
-        "ppo",
-        "--env",
-        "CartPole-v1",
-        "--epochs",
-        "1",
-        "--steps-per-epoch",
-        "200",
-        "--quiet",
-        "--out",
-        path(dir),
-    ];
-    args.extend_from_slice(extra);
-    ok(&args)
-}
+use super::{apo, fails, ok, path, small};
 
 /// Plants `text` at `dir/rel` (folders created).
 fn plant(dir: &Path, rel: &str, text: &str) -> PathBuf {

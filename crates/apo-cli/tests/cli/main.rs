@@ -41,6 +41,26 @@ pub fn path(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")
 }
 
+/// A one-epoch CartPole PPO run of 200 steps in `dir` (`extra` appended).
+pub fn small(dir: &Path, extra: &[&str]) -> String {
+    let mut args = vec![
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
+        path(dir),
+    ];
+    args.extend_from_slice(extra);
+    ok(&args)
+}
+
 /// A small run: 3 epochs of 600 steps on CartPole (`extra` appended).
 pub fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
     let mut args = vec![
