@@ -20,7 +20,9 @@ use std::sync::{Arc, Mutex};
 use super::error::MujocoError;
 use super::ffi::{mjData, mjModel, mjVFS, mjtObj, mjtWarning, MujocoApi};
 use super::library::api;
-use super::physics::{ContactForce, ObjKind, Physics, PhysicsData, PhysicsModel, Warning};
+use super::physics::{
+    ContactForce, Dynamics, ObjKind, Physics, PhysicsData, PhysicsModel, Warning,
+};
 
 /// MuJoCo 2.2's object type of `kind`.
 fn obj_type(kind: ObjKind) -> mjtObj {
@@ -339,6 +341,43 @@ impl PhysicsModel for Mj2Model {
     fn body_quat(&self) -> &[[f64; 4]] {
         // SAFETY: body_quat has nbody*4 entries.
         unsafe { slice(self.raw().body_quat.cast::<[f64; 4]>(), self.nbody()) }
+    }
+
+    fn dynamics(&self) -> Dynamics {
+        let m = self.raw();
+        let (nbody, njnt, nv, nu) = (self.nbody(), self.njnt(), self.nv(), self.nu());
+        let ngeom = size(m.ngeom);
+        // SAFETY: each array has the documented number of entries (MuJoCo's mjmodel.h), laid
+        // out object after object, and the model is read-only here.
+        unsafe {
+            Dynamics {
+                timestep: m.opt.timestep,
+                gravity: m.opt.gravity,
+                magnetic: m.opt.magnetic,
+                body_mass: slice(m.body_mass, nbody).to_vec(),
+                body_inertia: slice(m.body_inertia.cast::<[f64; 3]>(), nbody).to_vec(),
+                jnt_pos: slice(m.jnt_pos.cast::<[f64; 3]>(), njnt).to_vec(),
+                jnt_axis: slice(m.jnt_axis.cast::<[f64; 3]>(), njnt).to_vec(),
+                jnt_stiffness: slice(m.jnt_stiffness, njnt).to_vec(),
+                jnt_limited: slice(m.jnt_limited, njnt).iter().map(|&b| b != 0).collect(),
+                jnt_range: slice(m.jnt_range.cast::<[f64; 2]>(), njnt).to_vec(),
+                dof_armature: slice(m.dof_armature, nv).to_vec(),
+                dof_damping: slice(m.dof_damping, nv).to_vec(),
+                geom_size: slice(m.geom_size.cast::<[f64; 3]>(), ngeom).to_vec(),
+                geom_pos: slice(m.geom_pos.cast::<[f64; 3]>(), ngeom).to_vec(),
+                geom_friction: slice(m.geom_friction.cast::<[f64; 3]>(), ngeom).to_vec(),
+                geom_condim: slice(m.geom_condim, ngeom).to_vec(),
+                geom_margin: slice(m.geom_margin, ngeom).to_vec(),
+                geom_solref: slice(m.geom_solref.cast::<[f64; 2]>(), ngeom).to_vec(),
+                geom_solimp: slice(m.geom_solimp.cast::<[f64; 5]>(), ngeom).to_vec(),
+                actuator_gear: slice(m.actuator_gear.cast::<[f64; 6]>(), nu).to_vec(),
+                actuator_forcelimited: slice(m.actuator_forcelimited, nu)
+                    .iter()
+                    .map(|&b| b != 0)
+                    .collect(),
+                actuator_forcerange: slice(m.actuator_forcerange.cast::<[f64; 2]>(), nu).to_vec(),
+            }
+        }
     }
 
     fn set_body_pose(&mut self, id: usize, pos: [f64; 3], quat: [f64; 4]) -> bool {

@@ -35,7 +35,9 @@ use mujoco_rs::mujoco_c;
 use mujoco_rs::wrappers::{MjData, MjModel, MjtObjBase, MjtWarning};
 
 use super::error::MujocoError;
-use super::physics::{ContactForce, ObjKind, Physics, PhysicsData, PhysicsModel, Warning};
+use super::physics::{
+    ContactForce, Dynamics, ObjKind, Physics, PhysicsData, PhysicsModel, Warning,
+};
 
 /// MuJoCo 3's object type of `kind`.
 fn obj_type(kind: ObjKind) -> MjtObjBase {
@@ -352,6 +354,36 @@ impl PhysicsModel for Mj3Model {
 
     fn body_quat(&self) -> &[[f64; 4]] {
         self.model.body_quat()
+    }
+
+    fn dynamics(&self) -> Dynamics {
+        let m = &self.model;
+        let opt = m.opt();
+        let nu = self.nu();
+        Dynamics {
+            timestep: opt.timestep,
+            gravity: opt.gravity,
+            magnetic: opt.magnetic,
+            body_mass: m.body_mass().to_vec(),
+            body_inertia: m.body_inertia().to_vec(),
+            jnt_pos: m.jnt_pos().to_vec(),
+            jnt_axis: m.jnt_axis().to_vec(),
+            jnt_stiffness: m.jnt_stiffness().to_vec(),
+            jnt_limited: m.jnt_limited().to_vec(),
+            jnt_range: m.jnt_range().to_vec(),
+            dof_armature: m.dof_armature().to_vec(),
+            dof_damping: m.dof_damping().to_vec(),
+            geom_size: m.geom_size().to_vec(),
+            geom_pos: m.geom_pos().to_vec(),
+            geom_friction: m.geom_friction().to_vec(),
+            geom_condim: m.geom_condim().to_vec(),
+            geom_margin: m.geom_margin().to_vec(),
+            geom_solref: m.geom_solref().to_vec(),
+            geom_solimp: m.geom_solimp().to_vec(),
+            actuator_gear: m.actuator_gear().iter().take(nu).copied().collect(),
+            actuator_forcelimited: m.actuator_forcelimited().iter().take(nu).copied().collect(),
+            actuator_forcerange: m.actuator_forcerange().iter().take(nu).copied().collect(),
+        }
     }
 
     fn set_body_pose(&mut self, id: usize, pos: [f64; 3], quat: [f64; 4]) -> bool {

@@ -41,7 +41,7 @@ pub use bench::{steps_per_second, vector_steps_per_second};
 pub use env::{MujocoEnv, ResetNoise, Sizes, StepContext, Task};
 pub use error::MujocoError;
 pub use library::{check_library, EXPECTED_VERSION, LIBRARY_ENV_VAR};
-pub use model::{ContactForce, Data, Model, ObjKind, Warning};
+pub use model::{ContactForce, Data, Dynamics, Model, ObjKind, Warning};
 pub(crate) use physics::with_physics;
 pub use physics::{default_physics, set_default_physics, Physics};
 

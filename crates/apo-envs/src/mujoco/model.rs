@@ -20,7 +20,7 @@ use std::sync::Arc;
 
 use super::error::MujocoError;
 use super::physics::{default_physics, Physics, PhysicsData, PhysicsModel};
-pub use super::physics::{ContactForce, ObjKind, Warning};
+pub use super::physics::{ContactForce, Dynamics, ObjKind, Warning};
 
 /// A compiled MuJoCo model, read-only after loading except for [`Model::set_body_pose`]. See
 /// the module doc on threads.
@@ -186,6 +186,13 @@ impl Model {
     /// (`[nbody][4]`).
     pub fn body_quat(&self) -> &[[f64; 4]] {
         self.raw.body_quat()
+    }
+
+    /// The fields of the compiled model that decide its dynamics (masses, inertias, joints,
+    /// damping, armature, contact parameters, actuators, time step), copied: what a test
+    /// compares to pin a model against published facts.
+    pub fn dynamics(&self) -> Dynamics {
+        self.raw.dynamics()
     }
 
     /// Places body `id` at `pos` with orientation `quat` (a unit quaternion `(w, x, y, z)`)

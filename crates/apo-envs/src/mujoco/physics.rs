@@ -199,6 +199,8 @@ pub(crate) trait PhysicsModel: Send + Sync + fmt::Debug {
     fn body_pos(&self) -> &[[f64; 3]];
     /// `body_quat` (`[nbody]`).
     fn body_quat(&self) -> &[[f64; 4]];
+    /// The fields that decide the dynamics, copied.
+    fn dynamics(&self) -> Dynamics;
 
     /// Writes `body_pos[id]` and `body_quat[id]`; `false` (and no change) when `id` is out of
     /// range.
@@ -345,6 +347,58 @@ impl Warning {
         Warning::BadQacc,
         Warning::BadCtrl,
     ];
+}
+
+/// The fields of a compiled model that decide its dynamics, copied out of it: what two models
+/// must share to move alike (names, sensors and visuals left out). Each vector has one entry
+/// per object, in the model's order: bodies (world first), joints, degrees of freedom, geoms,
+/// actuators. Angles are in radians, as MuJoCo compiles them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dynamics {
+    /// `opt.timestep`, seconds.
+    pub timestep: f64,
+    /// `opt.gravity`.
+    pub gravity: [f64; 3],
+    /// `opt.magnetic`.
+    pub magnetic: [f64; 3],
+    /// `body_mass` (`[nbody]`).
+    pub body_mass: Vec<f64>,
+    /// `body_inertia`, the diagonal inertia in the body's inertial frame (`[nbody][3]`).
+    pub body_inertia: Vec<[f64; 3]>,
+    /// `jnt_pos`, each joint's anchor in its body's frame (`[njnt][3]`).
+    pub jnt_pos: Vec<[f64; 3]>,
+    /// `jnt_axis` (`[njnt][3]`).
+    pub jnt_axis: Vec<[f64; 3]>,
+    /// `jnt_stiffness` (`[njnt]`).
+    pub jnt_stiffness: Vec<f64>,
+    /// `jnt_limited` (`[njnt]`).
+    pub jnt_limited: Vec<bool>,
+    /// `jnt_range`, only meaningful where `jnt_limited` (`[njnt][2]`).
+    pub jnt_range: Vec<[f64; 2]>,
+    /// `dof_armature` (`[nv]`).
+    pub dof_armature: Vec<f64>,
+    /// `dof_damping` (`[nv]`).
+    pub dof_damping: Vec<f64>,
+    /// `geom_size` (`[ngeom][3]`).
+    pub geom_size: Vec<[f64; 3]>,
+    /// `geom_pos`, each geom's centre in its body's frame (`[ngeom][3]`).
+    pub geom_pos: Vec<[f64; 3]>,
+    /// `geom_friction`: sliding, torsional, rolling (`[ngeom][3]`).
+    pub geom_friction: Vec<[f64; 3]>,
+    /// `geom_condim` (`[ngeom]`).
+    pub geom_condim: Vec<i32>,
+    /// `geom_margin` (`[ngeom]`).
+    pub geom_margin: Vec<f64>,
+    /// `geom_solref` (`[ngeom][2]`).
+    pub geom_solref: Vec<[f64; 2]>,
+    /// `geom_solimp` (`[ngeom][5]`).
+    pub geom_solimp: Vec<[f64; 5]>,
+    /// `actuator_gear` (`[nu][6]`).
+    pub actuator_gear: Vec<[f64; 6]>,
+    /// `actuator_forcelimited` (`[nu]`).
+    pub actuator_forcelimited: Vec<bool>,
+    /// `actuator_forcerange`, only meaningful where `actuator_forcelimited` (`[nu][2]`).
+    pub actuator_forcerange: Vec<[f64; 2]>,
 }
 
 /// The force of one contact, from `mj_contactForce`.
