@@ -57,6 +57,23 @@ fn differences(d: &Dynamics, f: &Facts) -> Vec<String> {
     out.extend(mismatches("timestep", &[[d.timestep]], &[[f.timestep]]));
     out.extend(mismatches("gravity", &[d.gravity], &[f.gravity]));
     out.extend(mismatches("magnetic", &[d.magnetic], &[[0.0, -0.5, 0.0]]));
+    // GUARD's files set no solver option: MuJoCo 2.2.2's defaults, Euler with pyramidal cones.
+    let solver = |d: &Dynamics| {
+        [
+            f64::from(d.integrator),
+            f64::from(d.cone),
+            d.impratio,
+            f64::from(d.iterations),
+            d.tolerance,
+            f64::from(d.disableflags),
+            f64::from(d.enableflags),
+        ]
+    };
+    out.extend(mismatches(
+        "solver (integrator, cone, impratio, iterations, tolerance, disable and enable flags)",
+        &[solver(d)],
+        &[[0.0, 0.0, 1.0, 100.0, 1e-8, 0.0, 0.0]],
+    ));
     out.extend(mismatches(
         "body_mass",
         &rows(&d.body_mass),
@@ -255,5 +272,34 @@ fn the_push_ball_inherits_the_robot_files_contact_defaults() {
         let robot_only = without_ball(d);
         let out = differences(&robot_only, &f);
         assert!(out.is_empty(), "{}:\n{}", robot.name(), out.join("\n"));
+    }
+}
+
+/// MuJoCo 3.17 compiles every robot to the same fields as 2.2.2 (the flag bits are numbered
+/// differently between the versions, so they are left out): `Model::dynamics` reads the same
+/// arrays on both backends, and GUARD's robots move alike on both.
+#[cfg(feature = "mujoco3")]
+#[test]
+fn mujoco3_compiles_every_robot_to_the_same_fields() {
+    use apo_envs::mujoco::Physics;
+    for robot in Robot::ALL {
+        let xml = Suite {
+            task: TaskKind::Goal,
+            robot,
+        }
+        .mjcf();
+        let on = |physics| {
+            let mut d = Model::from_xml_str_with(&xml, physics)
+                .unwrap_or_else(|e| panic!("{} on {physics}: {e}", robot.name()))
+                .dynamics();
+            (d.disableflags, d.enableflags) = (0, 0);
+            d
+        };
+        assert_eq!(
+            on(Physics::Mujoco2),
+            on(Physics::Mujoco3),
+            "{}",
+            robot.name()
+        );
     }
 }

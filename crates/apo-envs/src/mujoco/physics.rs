@@ -361,6 +361,20 @@ pub struct Dynamics {
     pub gravity: [f64; 3],
     /// `opt.magnetic`.
     pub magnetic: [f64; 3],
+    /// `opt.integrator` (MuJoCo's `mjtIntegrator`: 0 is Euler).
+    pub integrator: i32,
+    /// `opt.cone` (`mjtCone`: 0 pyramidal, 1 elliptic).
+    pub cone: i32,
+    /// `opt.impratio`.
+    pub impratio: f64,
+    /// `opt.iterations`, the constraint solver's.
+    pub iterations: i32,
+    /// `opt.tolerance`, the constraint solver's.
+    pub tolerance: f64,
+    /// `opt.disableflags` (`mjtDisableBit` bits of the backend's MuJoCo version).
+    pub disableflags: i32,
+    /// `opt.enableflags` (`mjtEnableBit` bits of the backend's MuJoCo version).
+    pub enableflags: i32,
     /// `body_mass` (`[nbody]`).
     pub body_mass: Vec<f64>,
     /// `body_inertia`, the diagonal inertia in the body's inertial frame (`[nbody][3]`).
