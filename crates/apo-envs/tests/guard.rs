@@ -438,10 +438,10 @@ fn zero_action_returns_match_guards_in_magnitude_and_sign() {
     // GUARD's reference (seed 0): Goal 0 on every robot (Walker 0.0004); Push within ±0.0002
     // (Ant 0.032, its fall); Chase ≈ −1 (the robbers flee until they reach the travel limit).
     // The Ant's fall from 0.75 m shortens its 3D distance to the ball by an amount that depends
-    // on where the layout puts the ball (GUARD's seed-0 layout: 0.032). The Hopper starts with
-    // its foot 0.025 m in the floor and, like GUARD's (mean zero-action returns −0.03 on Goal,
-    // −0.06 on Push over 20 episodes), slides off from rest once its folding leg tips over, by
-    // up to about a metre in an episode.
+    // on where the layout puts the ball (GUARD's seed-0 layout: 0.032). The Hopper's start pose
+    // is a balance that rounding errors break in some layouts and not in others: then its leg
+    // tips over and the torso slides off by up to about a metre in an episode, as GUARD's does
+    // (mean zero-action returns −0.03 on Goal, −0.06 on Push over 20 episodes).
     for (name, _, _) in SIZES {
         let r = zero_action_return(name);
         println!("{name}: {r:.4}");
