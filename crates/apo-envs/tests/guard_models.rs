@@ -140,14 +140,13 @@ fn differences(d: &Dynamics, f: &Facts) -> Vec<String> {
 /// and geom positions and the control ranges too.
 fn check(robot: Robot) {
     let f = facts(robot);
-    let d = compiled(TaskKind::Goal, robot);
-    let mut out = differences(&d, &f);
     let xml = Suite {
         task: TaskKind::Goal,
         robot,
     }
     .mjcf();
-    let model = Model::from_xml_str(&xml).unwrap();
+    let model = Model::from_xml_str(&xml).unwrap_or_else(|e| panic!("{}: {e}", robot.name()));
+    let mut out = differences(&model.dynamics(), &f);
     out.extend(mismatches("body_pos", model.body_pos(), f.body_pos));
     out.extend(mismatches(
         "actuator_ctrlrange",
