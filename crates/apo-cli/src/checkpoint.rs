@@ -156,6 +156,9 @@ pub enum Which {
     Latest,
     /// The one kept at this epoch (`checkpoints/epoch-<N>`, see `keep_checkpoint_every`).
     Epoch(usize),
+    /// The one of the best evaluation so far (`checkpoints/best`, see `eval_every` and
+    /// `eval_best`).
+    Best,
 }
 
 impl std::str::FromStr for Which {
@@ -165,10 +168,13 @@ impl std::str::FromStr for Which {
         if s == "latest" {
             return Ok(Which::Latest);
         }
+        if s == "best" {
+            return Ok(Which::Best);
+        }
         s.trim_start_matches("epoch-")
             .parse()
             .map(Which::Epoch)
-            .map_err(|_| format!("`{s}` is not a checkpoint: use `latest` or an epoch number kept by keep_checkpoint_every"))
+            .map_err(|_| format!("`{s}` is not a checkpoint: use `latest`, `best` (runs with eval_every) or an epoch number kept by keep_checkpoint_every"))
     }
 }
 
@@ -222,6 +228,34 @@ pub fn save<B: Backend>(
     Ok(())
 }
 
+/// Writes a checkpoint of `learner` and `state` into `run`'s `checkpoints/best` (the best
+/// evaluation so far), replacing the one there atomically: a crash leaves the old or the new
+/// one complete (or, between the two renames, the old one as `checkpoints/.old-best`).
+pub fn save_best<B: Backend>(
+    run: &Path,
+    learner: &Learner<B, MlpPolicyConfig>,
+    state: &TrainState,
+    shapes: &Shapes,
+) -> anyhow::Result<()> {
+    let root = dir(run);
+    std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
+    let tmp = root.join(".tmp-best");
+    clear(&tmp)?;
+    write_into(&tmp, learner, state, shapes)
+        .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
+    let (best, old) = (root.join(BEST), root.join(".old-best"));
+    clear(&old)?;
+    if best.exists() {
+        std::fs::rename(&best, &old)?;
+    }
+    std::fs::rename(&tmp, &best)?;
+    atomic::sync_dir(&root)?;
+    clear(&old)
+}
+
+/// The folder of the best evaluation's checkpoint in `checkpoints/`.
+const BEST: &str = "best";
+
 /// The files a checkpoint folder consists of (with the temporary names of those written
 /// atomically): the only files apo removes from one.
 fn checkpoint_files() -> Vec<String> {
@@ -234,11 +268,13 @@ fn checkpoint_files() -> Vec<String> {
 }
 
 /// Whether `name` is a checkpoint folder apo names in `checkpoints/`: `latest`, `previous`,
-/// `epoch-<N>`, or a temporary `.tmp-<N>` / `.tmp-keep-<N>`.
+/// `best`, `epoch-<N>`, or a temporary `.tmp-<N>` / `.tmp-keep-<N>` / `.tmp-best` / `.old-best`.
 fn is_checkpoint_name(name: &str) -> bool {
     let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
-    matches!(name, "latest" | "previous")
-        || name.strip_prefix("epoch-").is_some_and(digits)
+    matches!(
+        name,
+        "latest" | "previous" | BEST | ".tmp-best" | ".old-best"
+    ) || name.strip_prefix("epoch-").is_some_and(digits)
         || name.strip_prefix(".tmp-keep-").is_some_and(digits)
         || name.strip_prefix(".tmp-").is_some_and(digits)
 }
@@ -361,6 +397,18 @@ pub fn locate(run: &Path, which: &Which) -> anyhow::Result<Option<PathBuf>> {
         Which::Latest => Ok([root.join("latest"), root.join("previous")]
             .into_iter()
             .find(|d| d.is_dir())),
+        Which::Best => {
+            let found = [root.join(BEST), root.join(".old-best")]
+                .into_iter()
+                .find(|d| d.is_dir());
+            if found.is_none() {
+                bail!(
+                    "{} has no best checkpoint: it is written by runs with eval_every > 0 once an evaluation has                      finished episodes",
+                    run.display()
+                );
+            }
+            Ok(found)
+        }
         Which::Epoch(epoch) => {
             let path = root.join(kept_name(*epoch));
             if path.is_dir() {

@@ -355,6 +355,10 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("episode_reset", "how episodes start: \"epoch\" (each epoch reseeds from the run's seed, later episodes continue the stream) or \"run_seed\" (every episode reset with the run's seed, as the paper's code on Gym MuJoCo and the hands)"),
     ("max_episode_steps", "truncate episodes after this many steps (the paper's maximum trajectory length, 1000 on every suite); 0 = the environment's registered limit (`apo list`)"),
     ("physics", "the physics of MuJoCo environments: \"mujoco2\" (MuJoCo 2.2.2, Debian's libmujoco-dev) or \"mujoco3\" (MuJoCo 3.17 through mujoco-rs; a build with --features mujoco3, docs/mujoco.md)"),
+    ("eval_every", "evaluate the policy every this many epochs on its own environment and seeds (eval_* columns of progress.csv; training is unchanged); 0 = never"),
+    ("eval_episodes", "episodes of each evaluation; 1..=1000000"),
+    ("eval_deterministic", "evaluate with the most likely action (a Gaussian's mean) instead of sampling; true/false"),
+    ("eval_best", "the evaluation statistic that picks checkpoints/best (`apo eval --checkpoint best`): \"mean\", \"worst\" or \"cvar10\""),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];
 

@@ -14,6 +14,8 @@ pub mod progress;
 pub mod removal;
 pub mod report;
 pub mod run_dir;
+pub mod stats;
+mod stats_plot;
 pub mod summary;
 pub mod sweep;
 pub mod tensorboard;

@@ -80,10 +80,10 @@ const PALETTE: [RGBColor; 10] = [
     RGBColor(23, 190, 207),
 ];
 /// Color of secondary text and of the legend's line-style samples.
-const GREY: RGBColor = RGBColor(80, 80, 80);
+pub(crate) const GREY: RGBColor = RGBColor(80, 80, 80);
 
 /// Registers the font once per process.
-fn load_font() -> anyhow::Result<()> {
+pub(crate) fn load_font() -> anyhow::Result<()> {
     static LOADED: OnceLock<Result<(), String>> = OnceLock::new();
     let register = || -> anyhow::Result<()> {
         let path = FONT_PATHS.iter().map(PathBuf::from).find(|p| p.exists()).context(
@@ -730,12 +730,12 @@ where
 }
 
 /// The plot's font at `size` pixels.
-fn font(size: u32) -> TextStyle<'static> {
+pub(crate) fn font(size: u32) -> TextStyle<'static> {
     TextStyle::from(("sans-serif", size).into_font())
 }
 
 /// The color of the `i`-th run.
-fn color(i: usize) -> RGBColor {
+pub(crate) fn color(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 

@@ -48,6 +48,8 @@ fn non_finite(row: &ProgressRow) -> Option<(&'static str, f64)> {
         ("ep_ret_min", row.ep_ret_min),
         ("ep_ret_max", row.ep_ret_max),
         ("ep_ret_std", row.ep_ret_std),
+        ("ep_ret_cvar10", row.ep_ret_cvar10),
+        ("ep_ret_q10", row.ep_ret_q10),
         ("ep_len_mean", row.ep_len_mean),
         ("success_rate", row.success_rate),
         ("bound", row.bound),

@@ -17,6 +17,13 @@
 //!
 //! The count of "best" per metric (the paper's summary table) counts, for each metric, the
 //! environments where a group (algorithm and variant) has the highest value (ties all count).
+//!
+//! [`statistics`] adds what the paper's tables lack, uncertainty (see [`crate::stats`]): for
+//! each per-run metric ([`RunMetric`]: the paper's four and the risk metrics CVaR 10 % and
+//! 10 % quantile over the last N epochs), every run's value is normalized per environment
+//! ([`Normalization`]), and over the environments that every group has, each group's mean,
+//! median, IQM and optimality gap get stratified-bootstrap intervals, each pair its probability
+//! of improvement, and each group a performance profile.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -29,7 +36,8 @@ use rand::{Rng, SeedableRng};
 use crate::config::RunConfig;
 use crate::progress;
 use crate::run_dir;
-use crate::summary::{mean_std, summarize_rows};
+use crate::stats::{self, Analysis, Comparison, Scores, StratifiedBootstrap};
+use crate::summary::{mean_std, summarize_rows, RunSummary};
 
 /// A value over seeds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,6 +72,10 @@ pub struct Baseline {
     pub mean: f64,
     /// Worst return.
     pub worst: f64,
+    /// Lower CVaR at 10 % of the returns.
+    pub cvar10: f64,
+    /// 10 % quantile of the returns.
+    pub q10: f64,
 }
 
 /// The metrics ranked in the summary of "best" counts, in column order.
@@ -87,6 +99,8 @@ pub struct GroupReport {
     pub runs: Vec<PathBuf>,
     /// How many of them have not reached their config's epochs (included, and marked).
     pub incomplete: usize,
+    /// Each run's metrics, in the order of `runs`.
+    pub summaries: Vec<RunSummary>,
     /// Average mean return over all epochs.
     pub mean_all: Option<Stat>,
     /// Average mean return over the last N epochs.
@@ -136,6 +150,9 @@ pub struct Report {
     pub groups: Vec<GroupReport>,
     /// Each environment's random baseline (where it could be measured).
     pub baselines: BTreeMap<String, Baseline>,
+    /// The statistics over environments and runs, one per metric (empty unless
+    /// [`statistics`] filled it).
+    pub statistics: Vec<MetricStatistics>,
 }
 
 /// [`apo_core::metrics::normalized_score`], `None` when it is not finite (TRPO at the
@@ -263,6 +280,7 @@ pub fn report(
     for ((env, _, variant), (algo, dirs)) in groups {
         let mut columns: [Vec<f64>; 6] = Default::default();
         let mut incomplete = 0;
+        let mut summaries = Vec::new();
         for dir in &dirs {
             let rows = progress::read_rows(&dir.join(run_dir::PROGRESS))
                 .with_context(|| format!("run {}", dir.display()))?;
@@ -282,6 +300,7 @@ pub fn report(
             ]) {
                 column.extend(value);
             }
+            summaries.push(s);
         }
         let [mean_all, mean_last, worst_all, worst_last, bound_last, confidence_last] =
             columns.map(|c| Stat::of(&c));
@@ -291,6 +310,7 @@ pub fn report(
             variant,
             runs: dirs,
             incomplete,
+            summaries,
             mean_all,
             mean_last,
             worst_all,
@@ -340,6 +360,7 @@ pub fn report(
         last,
         groups: reports,
         baselines,
+        statistics: Vec::new(),
     })
 }
 
@@ -392,11 +413,17 @@ pub fn random_baseline(
         returns.push(total);
     }
     let (mean, _) = mean_std(&returns);
-    let worst = returns.iter().copied().fold(f64::INFINITY, f64::min);
-    if !(mean.is_finite() && worst.is_finite()) {
+    returns.sort_by(f64::total_cmp);
+    let worst = returns.first().copied().unwrap_or(f64::NAN);
+    if !(mean.is_finite() && worst.is_finite() && returns.iter().all(|r| r.is_finite())) {
         bail!("the random policy's returns on {env} are not finite");
     }
-    Ok(Baseline { mean, worst })
+    Ok(Baseline {
+        mean,
+        worst,
+        cvar10: apo_core::metrics::lower_cvar(&returns, apo_core::metrics::RISK_LEVEL),
+        q10: apo_core::metrics::quantile(&returns, apo_core::metrics::RISK_LEVEL),
+    })
 }
 
 /// For each group label, how many environments it is best in, per metric ([`METRICS`]).
@@ -427,6 +454,285 @@ pub fn best_counts(report: &Report) -> Vec<(String, [usize; 4])> {
         }
     }
     counts
+}
+
+/// A per-run metric of [`statistics`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunMetric {
+    /// Average of the epochs' mean return over all epochs.
+    MeanAll,
+    /// Over the last N epochs.
+    MeanLast,
+    /// Average of the epochs' worst return over all epochs.
+    WorstAll,
+    /// Over the last N epochs.
+    WorstLast,
+    /// Average of the epochs' lower CVaR at 10 % over the last N epochs.
+    Cvar10Last,
+    /// Average of the epochs' 10 % quantile over the last N epochs.
+    Q10Last,
+}
+
+impl RunMetric {
+    /// All, in report order.
+    pub const ALL: [RunMetric; 6] = [
+        RunMetric::MeanAll,
+        RunMetric::MeanLast,
+        RunMetric::WorstAll,
+        RunMetric::WorstLast,
+        RunMetric::Cvar10Last,
+        RunMetric::Q10Last,
+    ];
+
+    /// The name in file names (`worst_last`).
+    pub fn name(self) -> &'static str {
+        match self {
+            RunMetric::MeanAll => "mean_all",
+            RunMetric::MeanLast => "mean_last",
+            RunMetric::WorstAll => "worst_all",
+            RunMetric::WorstLast => "worst_last",
+            RunMetric::Cvar10Last => "cvar10_last",
+            RunMetric::Q10Last => "q10_last",
+        }
+    }
+
+    /// Words for titles, with N.
+    pub fn title(self, last: usize) -> String {
+        match self {
+            RunMetric::MeanAll => "mean return (all epochs)".to_string(),
+            RunMetric::MeanLast => format!("mean return (last {last} epochs)"),
+            RunMetric::WorstAll => "worst return (all epochs)".to_string(),
+            RunMetric::WorstLast => format!("worst return (last {last} epochs)"),
+            RunMetric::Cvar10Last => format!("CVaR 10 % of the returns (last {last} epochs)"),
+            RunMetric::Q10Last => format!("10 % quantile of the returns (last {last} epochs)"),
+        }
+    }
+
+    /// The run's value.
+    pub fn of(self, s: &RunSummary) -> Option<f64> {
+        match self {
+            RunMetric::MeanAll => s.mean_all,
+            RunMetric::MeanLast => s.mean_last,
+            RunMetric::WorstAll => s.worst_all,
+            RunMetric::WorstLast => s.worst_last,
+            RunMetric::Cvar10Last => s.cvar10_last,
+            RunMetric::Q10Last => s.q10_last,
+        }
+        .filter(|v| v.is_finite())
+    }
+
+    /// The random policy's value of the same statistic of its returns.
+    fn random(self, b: &Baseline) -> f64 {
+        match self {
+            RunMetric::MeanAll | RunMetric::MeanLast => b.mean,
+            RunMetric::WorstAll | RunMetric::WorstLast => b.worst,
+            RunMetric::Cvar10Last => b.cvar10,
+            RunMetric::Q10Last => b.q10,
+        }
+    }
+}
+
+/// How [`statistics`] makes scores comparable across environments.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Normalization {
+    /// The paper's TRPO-normalized score of each run
+    /// ([`apo_core::metrics::normalized_score`]) against the random policy's value of the
+    /// metric and the TRPO group's mean over seeds (the TRPO group of the same variant, else
+    /// the environment's first): 0 is random, 1 is TRPO.
+    Trpo,
+    /// `(x − min) / (max − min)` with the lowest and highest value of any run of the compared
+    /// groups on the environment.
+    MinMax,
+}
+
+impl Normalization {
+    /// Words for the report.
+    fn describe(self) -> &'static str {
+        match self {
+            Normalization::Trpo => "TRPO-normalized per run (0: the random policy, 1: TRPO's mean over seeds)",
+            Normalization::MinMax => "min–max normalized per environment over every run of the compared groups (0: the lowest run, 1: the highest)",
+        }
+    }
+}
+
+/// The options of [`statistics`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StatsOptions {
+    /// The scores.
+    pub normalization: Normalization,
+    /// The intervals.
+    pub bootstrap: StratifiedBootstrap,
+}
+
+/// The statistics of one metric.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct MetricStatistics {
+    /// The metric.
+    pub metric: RunMetric,
+    /// How its values were normalized.
+    pub normalization: Normalization,
+    /// The analysis over the environments kept; `None` when none was.
+    pub analysis: Option<Analysis>,
+    /// The environments left out, each with why.
+    pub left_out: Vec<String>,
+}
+
+/// The statistics of every [`RunMetric`] over the report's groups (see the module's
+/// documentation). An environment enters only where every group has runs with a value and
+/// the normalization is defined; the others are listed in [`MetricStatistics::left_out`].
+pub fn statistics(report: &Report, options: &StatsOptions) -> Vec<MetricStatistics> {
+    let mut labels: Vec<String> = report.groups.iter().map(GroupReport::label).collect();
+    labels.sort();
+    labels.dedup();
+    let mut envs: Vec<&str> = report.groups.iter().map(|g| g.env.as_str()).collect();
+    envs.dedup();
+    RunMetric::ALL
+        .iter()
+        .map(|&metric| {
+            let mut tasks = Vec::new();
+            let mut scores: Vec<Vec<Vec<f64>>> = vec![Vec::new(); labels.len()];
+            let mut left_out = Vec::new();
+            for env in &envs {
+                match env_scores(report, env, &labels, metric, options.normalization) {
+                    Ok(per_label) => {
+                        tasks.push(env.to_string());
+                        for (s, runs) in scores.iter_mut().zip(per_label) {
+                            s.push(runs);
+                        }
+                    }
+                    Err(why) => left_out.push(format!("{env}: {why}")),
+                }
+            }
+            let analysis = (!tasks.is_empty()).then(|| {
+                let comparison = Comparison {
+                    tasks,
+                    algorithms: labels
+                        .iter()
+                        .cloned()
+                        .zip(scores.into_iter().map(|tasks| Scores { tasks }))
+                        .collect(),
+                };
+                let taus = stats::default_taus(&comparison);
+                stats::analyze(&comparison, &options.bootstrap, &taus)
+            });
+            MetricStatistics {
+                metric,
+                normalization: options.normalization,
+                analysis,
+                left_out,
+            }
+        })
+        .collect()
+}
+
+/// The normalized scores of each label's runs on `env`, or why the environment cannot enter.
+fn env_scores(
+    report: &Report,
+    env: &str,
+    labels: &[String],
+    metric: RunMetric,
+    normalization: Normalization,
+) -> Result<Vec<Vec<f64>>, String> {
+    let group = |label: &str| {
+        report
+            .groups
+            .iter()
+            .find(|g| g.env == env && g.label() == label)
+    };
+    let values =
+        |g: &GroupReport| -> Vec<f64> { g.summaries.iter().filter_map(|s| metric.of(s)).collect() };
+    let mut raw = Vec::new();
+    for label in labels {
+        let runs = group(label).map(values).unwrap_or_default();
+        if runs.is_empty() {
+            return Err(format!("{label} has no run with this metric"));
+        }
+        raw.push((label, runs));
+    }
+    match normalization {
+        Normalization::MinMax => {
+            let all = raw.iter().flat_map(|(_, r)| r.iter().copied());
+            let (low, high) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
+            if high <= low {
+                return Err("every run has the same value".to_string());
+            }
+            Ok(raw
+                .into_iter()
+                .map(|(_, runs)| runs.iter().map(|v| (v - low) / (high - low)).collect())
+                .collect())
+        }
+        Normalization::Trpo => {
+            let random = report
+                .baselines
+                .get(env)
+                .map(|b| metric.random(b))
+                .filter(|r| r.is_finite())
+                .ok_or("no random baseline")?;
+            raw.into_iter()
+                .map(|(label, runs)| {
+                    let variant = group(label).map_or("", |g| g.variant.as_str());
+                    let trpo = |same_variant: bool| {
+                        report.groups.iter().find(|t| {
+                            t.env == env
+                                && t.algo == Algorithm::Trpo
+                                && (!same_variant || t.variant == variant)
+                        })
+                    };
+                    let reference = trpo(true)
+                        .or_else(|| trpo(false))
+                        .map(values)
+                        .filter(|v| !v.is_empty())
+                        .ok_or("no TRPO run to normalize by")?;
+                    let reference = reference.iter().sum::<f64>() / reference.len() as f64;
+                    runs.iter()
+                        .map(|&v| {
+                            normalized_score(v, reference, random).ok_or_else(|| {
+                                "TRPO's value equals the random policy's: the score is not finite"
+                                    .to_string()
+                            })
+                        })
+                        .collect()
+                })
+                .collect()
+        }
+    }
+}
+
+/// The statistics section of the report in Markdown (empty without statistics).
+fn statistics_markdown(report: &Report) -> String {
+    let Some(first) = report.statistics.first() else {
+        return String::new();
+    };
+    let mut out = format!(
+        "## Statistics over environments and runs\n\nScores {}. Mean and median are over environments of each environment's mean over runs; IQM and optimality gap (to 1) over all runs of all environments; P(X > Y) is the probability that a run of X scores higher than a run of Y on the same environment, averaged over environments.\n\n",
+        first.normalization.describe()
+    );
+    for m in &report.statistics {
+        out.push_str(&format!("### {}\n\n", m.metric.title(report.last)));
+        if let Some(analysis) = &m.analysis {
+            out.push_str(&stats::markdown(analysis));
+            out.push('\n');
+        }
+        if !m.left_out.is_empty() {
+            out.push_str(&format!("Left out: {}.\n\n", m.left_out.join("; ")));
+        }
+    }
+    out
+}
+
+/// The file names of the statistics' figures of `metric`: profiles and intervals, PNG and SVG.
+fn statistics_figures(metric: RunMetric) -> [String; 4] {
+    let m = metric.name();
+    [
+        format!("profile-{m}.png"),
+        format!("profile-{m}.svg"),
+        format!("intervals-{m}.png"),
+        format!("intervals-{m}.svg"),
+    ]
 }
 
 fn stat_cell(s: Option<Stat>) -> String {
@@ -509,6 +815,11 @@ pub fn markdown(report: &Report) -> String {
             counts[0], counts[1], counts[2], counts[3]
         ));
     }
+    let statistics = statistics_markdown(report);
+    if !statistics.is_empty() {
+        out.push('\n');
+        out.push_str(&statistics);
+    }
     out
 }
 
@@ -577,6 +888,9 @@ pub fn csv(report: &Report) -> anyhow::Result<String> {
     Ok(String::from_utf8(bytes)?)
 }
 
+/// The statistics of a report, as JSON ([`MetricStatistics`] per metric).
+pub const STATISTICS_JSON: &str = "statistics.json";
+
 /// The marker of a report folder: the files `apo report` wrote there.
 pub const REPORT_MARKER: &str = ".apo-report";
 
@@ -599,6 +913,14 @@ pub fn write(
     let curves = |env: &str| format!("curves-{}.{image}", run_dir::env_label(env));
     let mut names = vec!["report.md".to_string(), "report.csv".to_string()];
     names.extend(envs.iter().map(|env| curves(env)));
+    if !report.statistics.is_empty() {
+        names.push(STATISTICS_JSON.to_string());
+        for m in &report.statistics {
+            if m.analysis.is_some() {
+                names.extend(statistics_figures(m.metric));
+            }
+        }
+    }
     run_dir::claim_outputs(out, REPORT_MARKER, &names)?;
     let mut written = Vec::new();
     for (name, text) in [
@@ -609,6 +931,28 @@ pub fn write(
         crate::atomic::write(&path, text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;
         written.push(path);
+    }
+    if !report.statistics.is_empty() {
+        let path = out.join(STATISTICS_JSON);
+        let text = serde_json::to_string_pretty(&report.statistics)?;
+        crate::atomic::write(&path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        written.push(path);
+    }
+    for m in &report.statistics {
+        let Some(analysis) = &m.analysis else {
+            continue;
+        };
+        let title = m.metric.title(report.last);
+        let [profile_png, profile_svg, intervals_png, intervals_svg] =
+            statistics_figures(m.metric).map(|name| out.join(name));
+        for path in [&profile_png, &profile_svg] {
+            crate::stats_plot::profiles(analysis, &title, "normalized score τ", path)?;
+        }
+        for path in [&intervals_png, &intervals_svg] {
+            crate::stats_plot::intervals(analysis, &title, path)?;
+        }
+        written.extend([profile_png, profile_svg, intervals_png, intervals_svg]);
     }
     for env in envs {
         let groups: Vec<(String, Vec<PathBuf>)> = report

@@ -1,6 +1,8 @@
 //! The paper's metrics over runs: the average of the epochs' mean return and of their
-//! worst return, over all epochs and over the last N epochs (and, for tasks that judge
-//! success, the average success rate over the last N); printed as a table or as CSV.
+//! worst return, over all epochs and over the last N epochs; the risk metrics of the last N
+//! epochs (the average of the epochs' lower CVaR at 10 % and 10 % quantile of the returns);
+//! and, for tasks that judge success, the average success rate over the last N. Printed as a
+//! table or as CSV.
 
 use std::path::Path;
 
@@ -23,6 +25,10 @@ pub struct RunSummary {
     pub worst_all: Option<f64>,
     /// Average over the last N epochs of the worst return.
     pub worst_last: Option<f64>,
+    /// Average over the last N epochs of the lower CVaR at 10 % of the returns.
+    pub cvar10_last: Option<f64>,
+    /// Average over the last N epochs of the 10 % quantile of the returns.
+    pub q10_last: Option<f64>,
     /// Average environment steps per second (rollout and update).
     pub steps_per_s: f64,
     /// Average over the last N epochs of the success rate, for tasks that judge success.
@@ -42,6 +48,8 @@ pub fn summarize_rows(rows: &[progress::ProgressRow], last: usize) -> RunSummary
     let means: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_mean).collect();
     let worst: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_min).collect();
     let success: Vec<f64> = rows.iter().filter_map(|r| r.success_rate).collect();
+    let cvar10: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_cvar10).collect();
+    let q10: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_q10).collect();
     let time = rows.last().map_or(0.0, |r| r.time_s);
     let env_steps = rows.last().map_or(0, |r| r.env_steps);
     RunSummary {
@@ -51,6 +59,8 @@ pub fn summarize_rows(rows: &[progress::ProgressRow], last: usize) -> RunSummary
         mean_last: average_over_epochs(&means, Some(last)),
         worst_all: average_over_epochs(&worst, None),
         worst_last: average_over_epochs(&worst, Some(last)),
+        cvar10_last: average_over_epochs(&cvar10, Some(last)),
+        q10_last: average_over_epochs(&q10, Some(last)),
         steps_per_s: if time > 0.0 {
             env_steps as f64 / time
         } else {
@@ -80,6 +90,8 @@ fn cells(s: &RunSummary, with_success: bool) -> Vec<Option<String>> {
         returns(s.mean_last),
         returns(s.worst_all),
         returns(s.worst_last),
+        returns(s.cvar10_last),
+        returns(s.q10_last),
         Some(format!("{:.0}", s.steps_per_s)),
     ];
     if with_success {
@@ -97,6 +109,8 @@ fn headers(last: usize, with_success: bool) -> Vec<(String, String)> {
         (format!("mean(last {last})"), format!("mean_last{last}")),
         ("worst(all)".into(), "worst_all".into()),
         (format!("worst(last {last})"), format!("worst_last{last}")),
+        (format!("cvar10(last {last})"), format!("cvar10_last{last}")),
+        (format!("q10(last {last})"), format!("q10_last{last}")),
         ("steps/s".into(), "steps_per_s".into()),
     ];
     if with_success {
@@ -156,7 +170,7 @@ pub fn table(rows: &[(String, RunSummary)], last: usize) -> String {
 }
 
 /// The runs' summaries as CSV (`last`: the N of "last N") with the header
-/// `run,epochs,env_steps,mean_all,mean_last{N},worst_all,worst_last{N},steps_per_s`, and
+/// `run,epochs,env_steps,mean_all,mean_last{N},worst_all,worst_last{N},cvar10_last{N},q10_last{N},steps_per_s`, and
 /// `success_last{N}` after it when any run's task judges success; fields are quoted where
 /// needed and a missing value is an empty field.
 pub fn csv(rows: &[(String, RunSummary)], last: usize) -> anyhow::Result<String> {
@@ -197,6 +211,8 @@ mod tests {
                     mean_last: Some(1503.1),
                     worst_all: Some(-12.0),
                     worst_last: Some(420.0),
+                    cvar10_last: Some(431.25),
+                    q10_last: None,
                     steps_per_s: 1234.4,
                     success_last: None,
                 },
@@ -210,6 +226,8 @@ mod tests {
                     mean_last: None,
                     worst_all: None,
                     worst_last: None,
+                    cvar10_last: None,
+                    q10_last: None,
                     steps_per_s: 0.0,
                     success_last: None,
                 },
@@ -239,6 +257,8 @@ mod tests {
                 "mean(last 20)",
                 "worst(all)",
                 "worst(last 20)",
+                "cvar10(last 20)",
+                "q10(last 20)",
                 "steps/s"
             ]
         );
@@ -248,7 +268,9 @@ mod tests {
         let end_of = |line: &str, cell: &str| line.find(cell).map(|i| i + cell.len());
         assert_eq!(end_of(lines[1], "812.46"), end_of(lines[0], "mean(all)"));
         assert_eq!(end_of(lines[1], "-12.00"), end_of(lines[0], "worst(all)"));
-        assert_eq!(lines[2].matches(" -").count(), 4, "{text}");
+        // the first run: "-12.00" and its missing q10
+        assert_eq!(lines[1].matches(" -").count(), 2, "{text}");
+        assert_eq!(lines[2].matches(" -").count(), 6, "{text}");
         assert!(lines[2].ends_with(" 0"));
     }
 
@@ -256,7 +278,7 @@ mod tests {
     fn csv_round_trips_and_quotes() {
         let text = csv(&rows(), 10).unwrap();
         assert!(text.starts_with(
-            "run,epochs,env_steps,mean_all,mean_last10,worst_all,worst_last10,steps_per_s\n"
+            "run,epochs,env_steps,mean_all,mean_last10,worst_all,worst_last10,cvar10_last10,q10_last10,steps_per_s\n"
         ));
         assert!(text.contains("\"runs/a,b \"\"quoted\"\"\","), "{text}");
         let mut reader = ::csv::Reader::from_reader(text.as_bytes());
@@ -272,12 +294,25 @@ mod tests {
                 "1503.10",
                 "-12.00",
                 "420.00",
+                "431.25",
+                "",
                 "1234"
             ]
         );
         assert_eq!(
             records[1].iter().collect::<Vec<_>>(),
-            ["runs/a,b \"quoted\"", "2", "40", "", "", "", "", "0"]
+            [
+                "runs/a,b \"quoted\"",
+                "2",
+                "40",
+                "",
+                "",
+                "",
+                "",
+                "",
+                "",
+                "0"
+            ]
         );
     }
 
@@ -311,5 +346,13 @@ mod tests {
         assert_eq!(summarize_rows(&rows, 2).success_last, Some(0.75));
         assert_eq!(summarize_rows(&rows[..1], 2).success_last, Some(0.0));
         assert_eq!(summarize_rows(&[row(1, None)], 2).success_last, None);
+        let risk = |epoch: usize, cvar10: f64| progress::ProgressRow {
+            epoch,
+            ep_ret_cvar10: Some(cvar10),
+            ep_ret_q10: Some(cvar10 + 1.0),
+            ..Default::default()
+        };
+        let s = summarize_rows(&[risk(1, -4.0), risk(2, 1.0), risk(3, 2.0)], 2);
+        assert_eq!((s.cvar10_last, s.q10_last), (Some(1.5), Some(2.5)));
     }
 }

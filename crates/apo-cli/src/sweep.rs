@@ -440,7 +440,9 @@ pub enum RunStatus {
     /// A run directory without a checkpoint: started again with `--force` (which removes only
     /// what apo created there).
     Failed,
-    /// The checkpoint has reached the target epoch.
+    /// The checkpoint has reached the target epoch, or, for a run kept without its
+    /// checkpoints (results committed as `config.toml` and `progress.csv`), its progress file
+    /// has.
     Finished,
 }
 
@@ -450,7 +452,9 @@ pub fn epochs_done(dir: &Path) -> usize {
     progress::read_lenient(&dir.join(run_dir::PROGRESS), true).map_or(0, |p| p.rows.len())
 }
 
-/// The status of the run in `dir` whose target is `epochs` epochs, decided by its checkpoint.
+/// The status of the run in `dir` whose target is `epochs` epochs, decided by its checkpoint;
+/// without one, a run whose `config.toml` is there and whose `progress.csv` has reached the
+/// target is finished (a finished run kept without its checkpoints), any other has failed.
 ///
 /// # Errors
 /// A checkpoint whose state cannot be read (the run is then left alone).
@@ -461,7 +465,16 @@ pub fn status(dir: &Path, epochs: usize) -> anyhow::Result<RunStatus> {
     Ok(match crate::checkpoint::latest_epoch(dir)? {
         Some(done) if done >= epochs => RunStatus::Finished,
         Some(done) if done > 0 => RunStatus::Interrupted { done },
-        _ => RunStatus::Failed,
+        Some(_) => RunStatus::Failed,
+        None => {
+            let recorded = progress::read_lenient(&dir.join(run_dir::PROGRESS), false)
+                .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
+            if recorded >= epochs && dir.join(run_dir::CONFIG).is_file() {
+                RunStatus::Finished
+            } else {
+                RunStatus::Failed
+            }
+        }
     })
 }
 

@@ -121,6 +121,13 @@ pub fn row_scalars(row: &ProgressRow) -> Vec<(&'static str, f64)> {
         ("return/min", row.ep_ret_min),
         ("return/max", row.ep_ret_max),
         ("return/std", row.ep_ret_std),
+        ("return/cvar10", row.ep_ret_cvar10),
+        ("return/q10", row.ep_ret_q10),
+        ("eval/mean", row.eval_ret_mean),
+        ("eval/min", row.eval_ret_min),
+        ("eval/cvar10", row.eval_ret_cvar10),
+        ("eval/std", row.eval_ret_std),
+        ("eval/length", row.eval_len_mean),
         ("episode/length", row.ep_len_mean),
         ("episode/success_rate", row.success_rate),
         ("bound/value", row.bound),
@@ -159,6 +166,7 @@ pub fn row_scalars(row: &ProgressRow) -> Vec<(&'static str, f64)> {
         ("time/rollout_s", row.rollout_s),
         ("time/update_pi_s", row.update_pi_s),
         ("time/update_v_s", row.update_v_s),
+        ("time/eval_s", row.eval_s),
     ];
     optional
         .into_iter()
@@ -481,6 +489,8 @@ mod tests {
             ep_ret_min: some(-300.0),
             ep_ret_max: some(-10.0),
             ep_ret_std: some(90.0),
+            ep_ret_cvar10: some(-280.0),
+            ep_ret_q10: some(-270.0),
             ep_len_mean: some(200.0),
             success_rate: None,
             bound: some(-400.0),
@@ -502,11 +512,18 @@ mod tests {
             eta: None,
             alpha: None,
             unstable_episodes: 0,
+            eval_ret_mean: None,
+            eval_ret_min: None,
+            eval_ret_cvar10: None,
+            eval_ret_std: None,
+            eval_len_mean: None,
+            eval_unstable_episodes: None,
             steps_per_s: 1500.0,
             time_s: 8.0,
             rollout_s: 1.0,
             update_pi_s: 2.0,
             update_v_s: 3.0,
+            eval_s: 0.0,
         }
     }
 
@@ -515,6 +532,8 @@ mod tests {
         let full = row_scalars(&row(true));
         let get = |tag: &str| full.iter().find(|(t, _)| *t == tag).map(|(_, v)| *v);
         assert_eq!(get("return/mean"), Some(-150.0));
+        assert_eq!(get("return/cvar10"), Some(-280.0));
+        assert_eq!(get("return/q10"), Some(-270.0));
         assert_eq!(get("bound/confidence"), Some(0.7));
         assert_eq!(get("apo/variance_mean"), Some(2.0));
         assert_eq!(get("speed/steps_per_s"), Some(1500.0));
@@ -532,6 +551,6 @@ mod tests {
         assert!(empty
             .iter()
             .any(|(t, v)| *t == "episode/count" && *v == 0.0));
-        assert_eq!(full.len() - empty.len(), 7);
+        assert_eq!(full.len() - empty.len(), 9);
     }
 }

@@ -171,6 +171,12 @@ pub fn train<B: Backend>(
     }
     let mut checkpoint_epoch = trainer.state().epoch;
     let epochs = config.train.epochs;
+    // the best evaluation so far, from the rows kept (a resumed run picks up where it was)
+    let metric = config.train.eval_best;
+    let mut best = rows
+        .iter()
+        .filter_map(|r| r.evaluation(metric))
+        .fold(None, |b: Option<f64>, v| Some(b.map_or(v, |b| b.max(v))));
     while !trainer.finished() {
         let report = match trainer.epoch(stop, &mut |steps| observer.steps(steps)) {
             Ok(Some(report)) => report,
@@ -223,6 +229,16 @@ pub fn train<B: Backend>(
         if let Some(events) = &mut events {
             progress::write(&progress_path, &rows)?;
             events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
+        }
+        if let Some(value) = row.evaluation(metric) {
+            tracing::info!(epoch = row.epoch, ?metric, value, "evaluation");
+            if best.is_none_or(|b| value > b) {
+                best = Some(value);
+                if writer {
+                    let state = TrainState::new(trainer.state().clone()).with_ranks(ranks);
+                    checkpoint::save_best(run_dir, trainer.learner(), &state, &shapes)?;
+                }
+            }
         }
         // a signal seen by any rank interrupts all of them after this epoch
         let mut interrupted = [f64::from(u8::from(stop.load(Ordering::Relaxed)))];

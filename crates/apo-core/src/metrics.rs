@@ -16,6 +16,12 @@ pub struct EpisodeStats {
     pub ret_max: f64,
     /// Standard deviation of the returns (population).
     pub ret_std: f64,
+    /// Lower conditional value at risk at 10 %: the mean of the worst `⌈0.1·count⌉` returns
+    /// (at least one), see [`lower_cvar`].
+    pub ret_cvar10: f64,
+    /// The 10 % quantile of the returns (linear interpolation between order statistics), see
+    /// [`quantile`].
+    pub ret_q10: f64,
     /// Mean episode length.
     pub len_mean: f64,
     /// Empirical lower probability bound `B_k = J − k · Var`.
@@ -35,17 +41,50 @@ impl EpisodeStats {
         let ret_mean = returns.iter().sum::<f64>() / n;
         let var = returns.iter().map(|r| (r - ret_mean).powi(2)).sum::<f64>() / n;
         let (bound, confidence) = lower_probability_bound(ret_mean, var, k);
+        let mut sorted = returns.to_vec();
+        sorted.sort_by(f64::total_cmp);
         Some(Self {
             count: returns.len(),
             ret_mean,
             ret_min: returns.iter().copied().fold(f64::INFINITY, f64::min),
             ret_max: returns.iter().copied().fold(f64::NEG_INFINITY, f64::max),
             ret_std: var.sqrt(),
+            ret_cvar10: lower_cvar(&sorted, RISK_LEVEL),
+            ret_q10: quantile(&sorted, RISK_LEVEL),
             len_mean: lengths.iter().sum::<usize>() as f64 / lengths.len().max(1) as f64,
             bound,
             confidence,
         })
     }
+}
+
+/// The level α of the risk metrics an epoch records ([`EpisodeStats::ret_cvar10`],
+/// [`EpisodeStats::ret_q10`]): 10 %.
+pub const RISK_LEVEL: f64 = 0.1;
+
+/// Lower CVaR at level `alpha` of ascending `sorted` values: the mean of the smallest
+/// `max(1, ⌈alpha·n⌉)` of them (the worst `alpha` share of the episodes, at least one; with
+/// fewer than `1/alpha` episodes it is the worst return). `NaN` for no values.
+pub fn lower_cvar(sorted: &[f64], alpha: f64) -> f64 {
+    let n = sorted.len();
+    // the small tolerance keeps ⌈0.1·30⌉ at 3 although 0.1·30 is 3.0000000000000004 in f64
+    let take = ((alpha * n as f64 - 1e-9).ceil() as usize).clamp(1, n.max(1));
+    sorted.iter().take(take).sum::<f64>() / take.min(n) as f64
+}
+
+/// The `p`-quantile of ascending `sorted` values by linear interpolation between order
+/// statistics (position `p·(n − 1)`: Hyndman & Fan's type 7, the default of NumPy and R).
+/// `NaN` for no values.
+pub fn quantile(sorted: &[f64], p: f64) -> f64 {
+    let n = sorted.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    let position = p.clamp(0.0, 1.0) * (n - 1) as f64;
+    let below = position.floor() as usize;
+    let above = (below + 1).min(n - 1);
+    let fraction = position - below as f64;
+    sorted[below] + fraction * (sorted[above] - sorted[below])
 }
 
 /// `(J − k · var, 1 − 1 / (k² var + 1))`: Selberg's inequality gives
@@ -89,6 +128,26 @@ mod tests {
         assert!((s.bound - (3.0 - 0.5 * 14.0 / 3.0)).abs() < 1e-12);
         assert!((s.confidence - (1.0 - 1.0 / (0.25 * 14.0 / 3.0 + 1.0))).abs() < 1e-12);
         assert!(EpisodeStats::from_episodes(&[], &[], 1.0).is_none());
+        // fewer than 10 episodes: CVaR10 is the worst return; q10 at position 0.2 of 1, 2, 6
+        assert_eq!(s.ret_cvar10, 1.0);
+        assert!((s.ret_q10 - 1.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn risk_metrics_by_hand() {
+        // 30 returns 1..=30 in a shuffled order: the worst ⌈3⌉ are 1, 2, 3 → CVaR 2;
+        // q10 at position 0.1·29 = 2.9 → 3 + 0.9·(4 − 3) = 3.9
+        let returns: Vec<f64> = (0..30).map(|i| ((i * 7) % 30 + 1) as f64).collect();
+        let s = EpisodeStats::from_episodes(&returns, &[1; 30], 1.0).expect("episodes");
+        assert!((s.ret_cvar10 - 2.0).abs() < 1e-12, "{}", s.ret_cvar10);
+        assert!((s.ret_q10 - 3.9).abs() < 1e-12, "{}", s.ret_q10);
+        // 11 returns: ⌈1.1⌉ = 2 worst
+        let sorted: Vec<f64> = (0..11).map(f64::from).collect();
+        assert_eq!(lower_cvar(&sorted, 0.1), 0.5);
+        assert_eq!(quantile(&sorted, 0.1), 1.0);
+        assert_eq!(quantile(&sorted, 1.0), 10.0);
+        assert_eq!(quantile(&[5.0], 0.1), 5.0);
+        assert!(quantile(&[], 0.1).is_nan() && lower_cvar(&[], 0.1).is_nan());
     }
 
     #[test]

@@ -28,7 +28,16 @@ pub trait Act {
     /// Samples one action for each of the `n` states `obs: [n, observation_dim]` (already
     /// normalized), filling `out`: actions `[n, action_width]`, environment actions
     /// `[n, env_width]`, log-probabilities `[n]` and distribution parameters `[n, dist_width]`.
-    fn act(&mut self, obs: &[f32], n: usize, rng: &mut StdRng, out: &mut ActBuffers);
+    /// With `deterministic`, takes the most likely action instead (a Gaussian's mean, a
+    /// categorical's arg max; evaluation), drawing nothing from `rng`.
+    fn act(
+        &mut self,
+        obs: &[f32],
+        n: usize,
+        deterministic: bool,
+        rng: &mut StdRng,
+        out: &mut ActBuffers,
+    );
 
     /// The critic's values `V(s)` of `obs: [n, observation_dim]` → `[n]`.
     fn values(&mut self, obs: &[f32], n: usize) -> &[f32];
@@ -53,8 +62,15 @@ pub struct HostActor {
 }
 
 impl Act for HostActor {
-    fn act(&mut self, obs: &[f32], n: usize, rng: &mut StdRng, out: &mut ActBuffers) {
-        self.policy.act(obs, n, false, rng, out);
+    fn act(
+        &mut self,
+        obs: &[f32],
+        n: usize,
+        deterministic: bool,
+        rng: &mut StdRng,
+        out: &mut ActBuffers,
+    ) {
+        self.policy.act(obs, n, deterministic, rng, out);
     }
 
     fn values(&mut self, obs: &[f32], n: usize) -> &[f32] {
@@ -99,12 +115,19 @@ fn host_rows(parts: Vec<Tensor<NdArray, 2>>, out: &mut Vec<f32>) {
 }
 
 impl<F: PolicyFamily> Act for BurnActor<F> {
-    fn act(&mut self, obs: &[f32], n: usize, rng: &mut StdRng, out: &mut ActBuffers) {
+    fn act(
+        &mut self,
+        obs: &[f32],
+        n: usize,
+        deterministic: bool,
+        rng: &mut StdRng,
+        out: &mut ActBuffers,
+    ) {
         match self.policy.distribution(Self::tensor(obs, n)) {
             DistParams::Gaussian { mean, log_std } => host_rows(vec![mean, log_std], &mut out.dist),
             DistParams::Categorical { logits } => host_rows(vec![logits], &mut out.dist),
         }
-        out.sample(self.action, n, false, rng);
+        out.sample(self.action, n, deterministic, rng);
     }
 
     fn values(&mut self, obs: &[f32], n: usize) -> &[f32] {

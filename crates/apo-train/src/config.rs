@@ -20,6 +20,26 @@ fn yes() -> bool {
     true
 }
 
+fn ten() -> usize {
+    10
+}
+
+/// Upper bound of `eval_episodes`.
+pub const MAX_EVAL_EPISODES: usize = 1_000_000;
+
+/// The statistic of the evaluation episodes that picks the best checkpoint.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EvalMetric {
+    /// The mean return.
+    #[default]
+    Mean,
+    /// The worst return.
+    Worst,
+    /// The lower CVaR at 10 % of the returns.
+    Cvar10,
+}
+
 /// How the policy's Gaussian actions reach the environment.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -91,6 +111,20 @@ pub struct TrainConfig {
     /// `mujoco3` feature).
     #[serde(default)]
     pub physics: apo_envs::mujoco::Physics,
+    /// Evaluate the policy every this many epochs, on its own environment and seeds (never the
+    /// training stream: training is the same with or without it); 0 (default): never.
+    #[serde(default)]
+    pub eval_every: usize,
+    /// Episodes of each evaluation.
+    #[serde(default = "ten")]
+    pub eval_episodes: usize,
+    /// Evaluate with the most likely action (a Gaussian's mean, a categorical's arg max)
+    /// instead of sampling.
+    #[serde(default = "yes")]
+    pub eval_deterministic: bool,
+    /// The evaluation statistic that picks the best checkpoint (`checkpoints/best`).
+    #[serde(default)]
+    pub eval_best: EvalMetric,
     /// The algorithm's hyperparameters.
     pub algo: AlgoConfig,
 }
@@ -115,6 +149,10 @@ impl TrainConfig {
             episode_reset: EpisodeReset::Epoch,
             max_episode_steps: 0,
             physics: apo_envs::mujoco::Physics::Mujoco2,
+            eval_every: 0,
+            eval_episodes: 10,
+            eval_deterministic: true,
+            eval_best: EvalMetric::Mean,
             algo: AlgoConfig::paper_defaults(algo),
         }
     }
@@ -196,6 +234,18 @@ impl TrainConfig {
                 "must be in 0..={} (TOML integers are signed 64-bit)",
                 i64::MAX
             ),
+        )?;
+        check(
+            (1..=MAX_EVAL_EPISODES).contains(&self.eval_episodes),
+            "eval_episodes",
+            self.eval_episodes.to_string(),
+            &format!("must be in 1..={MAX_EVAL_EPISODES}"),
+        )?;
+        check(
+            self.eval_every <= MAX_EPOCHS,
+            "eval_every",
+            self.eval_every.to_string(),
+            &format!("must be in 0..={MAX_EPOCHS}"),
         )?;
         self.algo.validate().map_err(|e| ConfigError {
             field: format!("algo.{}.{}", self.algo.algorithm(), e.field),

@@ -9,6 +9,8 @@
 //! * [`rollout`] — [`Collector`]: steps a vector of environments with one batched actor call
 //!   per step, bootstraps cut paths and fills the rollout buffers;
 //! * [`metrics`] — [`ProgressRow`], one row of metrics per epoch;
+//! * [`evaluation`] — [`Evaluator`]: evaluation episodes during training on their own
+//!   environment and seeds (`eval_every`);
 //! * [`trainer`] — [`Trainer`]: rollout → update → metrics, epoch after epoch, with the
 //!   checkpoint schedule;
 //! * [`seed`] — the seed streams of a run.
@@ -31,14 +33,16 @@
 pub mod actor;
 pub mod config;
 pub mod error;
+pub mod evaluation;
 pub mod metrics;
 pub mod rollout;
 pub mod seed;
 pub mod trainer;
 
 pub use actor::{Act, Actor, BurnActor, HostActor};
-pub use config::{ActionMapping, EpisodeReset, TrainConfig};
+pub use config::{ActionMapping, EpisodeReset, EvalMetric, TrainConfig};
 pub use error::TrainError;
+pub use evaluation::{Evaluation, Evaluator};
 pub use metrics::{EpochTimes, ProgressRow};
 pub use rollout::{action_kind, Collector, Rollout};
 pub use seed::derive_seed;

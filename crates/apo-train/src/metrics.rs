@@ -4,12 +4,13 @@ use apo_core::{EpisodeStats, LineSearchOutcome, UpdateReport};
 use serde::{Deserialize, Serialize};
 
 /// The columns that depend on wall-clock time (everything else is reproducible).
-pub const TIME_COLUMNS: [&str; 5] = [
+pub const TIME_COLUMNS: [&str; 6] = [
     "steps_per_s",
     "time_s",
     "rollout_s",
     "update_pi_s",
     "update_v_s",
+    "eval_s",
 ];
 
 /// One epoch's row. Return statistics are empty when no episode ended in the epoch.
@@ -29,6 +30,12 @@ pub struct ProgressRow {
     pub ep_ret_max: Option<f64>,
     /// Standard deviation of the returns.
     pub ep_ret_std: Option<f64>,
+    /// Lower CVaR at 10 %: mean of the worst 10 % of the epoch's returns (at least one).
+    #[serde(default)]
+    pub ep_ret_cvar10: Option<f64>,
+    /// 10 % quantile of the epoch's returns (linear interpolation).
+    #[serde(default)]
+    pub ep_ret_q10: Option<f64>,
     /// Mean episode length.
     pub ep_len_mean: Option<f64>,
     /// Fraction of the epoch's episodes that ended in success, for tasks that judge it (the
@@ -81,6 +88,25 @@ pub struct ProgressRow {
     pub alpha: Option<f64>,
     /// Episodes ended by a simulator instability in this epoch.
     pub unstable_episodes: usize,
+    /// Mean return of the evaluation episodes after this epoch's update (epochs that
+    /// evaluate, see `eval_every`).
+    #[serde(default)]
+    pub eval_ret_mean: Option<f64>,
+    /// Their worst return.
+    #[serde(default)]
+    pub eval_ret_min: Option<f64>,
+    /// Their lower CVaR at 10 %.
+    #[serde(default)]
+    pub eval_ret_cvar10: Option<f64>,
+    /// The standard deviation of their returns.
+    #[serde(default)]
+    pub eval_ret_std: Option<f64>,
+    /// Their mean length.
+    #[serde(default)]
+    pub eval_len_mean: Option<f64>,
+    /// Evaluation episodes ended by a simulator instability (left out of the statistics).
+    #[serde(default)]
+    pub eval_unstable_episodes: Option<usize>,
     /// Environment steps per second over the epoch (rollout and update).
     pub steps_per_s: f64,
     /// Wall time since the run started, seconds.
@@ -94,6 +120,9 @@ pub struct ProgressRow {
     /// Wall time of the epoch's value update, seconds.
     #[serde(default)]
     pub update_v_s: f64,
+    /// Wall time of the epoch's evaluation, seconds (not part of `steps_per_s`).
+    #[serde(default)]
+    pub eval_s: f64,
 }
 
 /// Wall times of an epoch's phases, seconds.
@@ -117,7 +146,45 @@ impl ProgressRow {
             rollout_s: 0.0,
             update_pi_s: 0.0,
             update_v_s: 0.0,
+            eval_s: 0.0,
             ..self
+        }
+    }
+
+    /// The row without its evaluation columns (and their time): what a run with evaluation
+    /// must agree on with the same run without it.
+    pub fn without_evaluation(self) -> Self {
+        Self {
+            eval_ret_mean: None,
+            eval_ret_min: None,
+            eval_ret_cvar10: None,
+            eval_ret_std: None,
+            eval_len_mean: None,
+            eval_unstable_episodes: None,
+            eval_s: 0.0,
+            ..self
+        }
+    }
+
+    /// Sets the evaluation columns from the evaluation episodes' statistics, the number of
+    /// unstable ones and the evaluation's time.
+    pub fn set_evaluation(&mut self, stats: Option<&EpisodeStats>, unstable: usize, seconds: f64) {
+        self.eval_unstable_episodes = Some(unstable);
+        self.eval_ret_mean = stats.map(|s| s.ret_mean);
+        self.eval_ret_min = stats.map(|s| s.ret_min);
+        self.eval_ret_cvar10 = stats.map(|s| s.ret_cvar10);
+        self.eval_ret_std = stats.map(|s| s.ret_std);
+        self.eval_len_mean = stats.map(|s| s.len_mean);
+        self.eval_s = seconds;
+    }
+
+    /// The row's evaluation statistic `metric`, in epochs that evaluated.
+    pub fn evaluation(&self, metric: crate::config::EvalMetric) -> Option<f64> {
+        use crate::config::EvalMetric;
+        match metric {
+            EvalMetric::Mean => self.eval_ret_mean,
+            EvalMetric::Worst => self.eval_ret_min,
+            EvalMetric::Cvar10 => self.eval_ret_cvar10,
         }
     }
 
@@ -145,6 +212,8 @@ impl ProgressRow {
             ep_ret_min: stats.map(|s| s.ret_min),
             ep_ret_max: stats.map(|s| s.ret_max),
             ep_ret_std: stats.map(|s| s.ret_std),
+            ep_ret_cvar10: stats.map(|s| s.ret_cvar10),
+            ep_ret_q10: stats.map(|s| s.ret_q10),
             ep_len_mean: stats.map(|s| s.len_mean),
             success_rate,
             bound: stats.map(|s| s.bound),
@@ -166,6 +235,13 @@ impl ProgressRow {
             eta: report.multipliers.map(|m| m.eta),
             alpha: report.multipliers.map(|m| m.alpha),
             unstable_episodes,
+            eval_ret_mean: None,
+            eval_ret_min: None,
+            eval_ret_cvar10: None,
+            eval_ret_std: None,
+            eval_len_mean: None,
+            eval_unstable_episodes: None,
+            eval_s: 0.0,
             steps_per_s: times.steps_per_s,
             time_s: times.time_s,
             rollout_s: times.rollout_s,

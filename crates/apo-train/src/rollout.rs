@@ -219,7 +219,7 @@ impl Collector {
             }
             let mut obs_norm = std::mem::take(&mut self.obs_norm);
             self.normalized(&self.obs, &mut obs_norm);
-            actor.act(&obs_norm, n, &mut rng, &mut self.act);
+            actor.act(&obs_norm, n, false, &mut rng, &mut self.act);
             self.values.clear();
             self.values.extend_from_slice(actor.values(&obs_norm, n));
             self.env_actions.clear();

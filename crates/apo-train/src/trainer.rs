@@ -35,6 +35,7 @@ use serde::{Deserialize, Serialize};
 use crate::actor::{Actor, HostActor};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
+use crate::evaluation::Evaluator;
 use crate::metrics::{EpochTimes, ProgressRow};
 use crate::rollout::{action_kind, Collector};
 use crate::seed::derive_seed;
@@ -83,6 +84,8 @@ where
     started: (Instant, f64),
     /// The ranks of a data-parallel run.
     comm: Comm,
+    /// The evaluation episodes, when the run evaluates.
+    evaluator: Option<Evaluator>,
 }
 
 impl<B: Backend> Trainer<B, MlpPolicyConfig, HostActor> {
@@ -116,6 +119,9 @@ where
     /// `config.env` stepped on `threads` threads (0: the cores available; the results do not
     /// depend on it). The networks are initialized from `config.seed` on `device`.
     ///
+    /// With `eval_every > 0` the policy is also evaluated every `eval_every` epochs on a
+    /// further copy of the environment with its own seeds ([`crate::evaluation`]).
+    ///
     /// # Errors
     /// [`TrainError::Config`] for a setting out of range, [`TrainError::Env`] when the
     /// environments cannot be made.
@@ -128,19 +134,40 @@ where
         config.validate()?;
         let envs = VecEnv::make_with(&config.env, config.num_envs, &config.make_options())?
             .with_threads(threads)?;
-        Self::from_envs(config, envs, device, family)
+        let evaluator = Evaluator::new(&config)?;
+        Self::build(config, envs, device, family, evaluator)
     }
 
     /// A trainer on the given vector of environments (any [`apo_envs::Env`], registered or
     /// not; `config.env` and `config.num_envs` are then only labels).
     ///
     /// # Errors
-    /// [`TrainError::Config`] for a setting out of range.
+    /// [`TrainError::Config`] for a setting out of range, and for `eval_every > 0`: the
+    /// evaluation makes its own environment from the registry, which environments given here
+    /// need not be in.
     pub fn from_envs(
         config: TrainConfig,
         envs: VecEnv,
         device: &B::Device,
         family: impl FnOnce(&TrainConfig, usize, ActionKind) -> F,
+    ) -> Result<Self, TrainError> {
+        if config.eval_every > 0 {
+            return Err(TrainError::Config(ConfigError {
+                field: "eval_every".into(),
+                value: config.eval_every.to_string(),
+                rule: "must be 0 with Trainer::from_envs (the evaluation makes its environment from the registry: use                        Trainer::new with a registered environment)"
+                    .into(),
+            }));
+        }
+        Self::build(config, envs, device, family, None)
+    }
+
+    fn build(
+        config: TrainConfig,
+        envs: VecEnv,
+        device: &B::Device,
+        family: impl FnOnce(&TrainConfig, usize, ActionKind) -> F,
+        evaluator: Option<Evaluator>,
     ) -> Result<Self, TrainError> {
         config.validate()?;
         let (observation_dim, action) = (envs.obs_dim(), action_kind(envs.action_space()));
@@ -175,6 +202,7 @@ where
             },
             started: (Instant::now(), 0.0),
             comm: Comm::default(),
+            evaluator,
             config,
             learner,
             value,
@@ -337,7 +365,7 @@ where
             self.config.algo.probability_factor(),
         );
         let steps_per_s = rollout.steps as f64 / epoch_start.elapsed().as_secs_f64().max(1e-9);
-        let row = ProgressRow::new(
+        let mut row = ProgressRow::new(
             state.epoch,
             state.env_steps,
             stats.as_ref(),
@@ -350,6 +378,22 @@ where
                 time_s: state.elapsed_s,
             },
         );
+        let every = self.config.eval_every;
+        if let Some(evaluator) = self.evaluator.as_mut().filter(|_| every > 0) {
+            if row.epoch.is_multiple_of(every) {
+                let start = Instant::now();
+                let evaluation = evaluator.evaluate(
+                    &mut self.actor,
+                    self.collector.normalizer(),
+                    self.config.algo.probability_factor(),
+                );
+                row.set_evaluation(
+                    evaluation.stats.as_ref(),
+                    evaluation.unstable,
+                    start.elapsed().as_secs_f64(),
+                );
+            }
+        }
         Ok(Some(EpochReport { row, update }))
     }
 

@@ -107,8 +107,8 @@ fn the_host_and_burn_actors_act_alike_on_the_built_in_mlp() {
             .map(|_| rng.random_range(-2.0..2.0))
             .collect();
         let (mut a, mut b) = (ActBuffers::default(), ActBuffers::default());
-        host.act(&obs, n, &mut StdRng::seed_from_u64(9), &mut a);
-        burn.act(&obs, n, &mut StdRng::seed_from_u64(9), &mut b);
+        host.act(&obs, n, false, &mut StdRng::seed_from_u64(9), &mut a);
+        burn.act(&obs, n, false, &mut StdRng::seed_from_u64(9), &mut b);
         let close = |x: &[f32], y: &[f32], what: &str| {
             assert_eq!(x.len(), y.len(), "{what}");
             for (i, (x, y)) in x.iter().zip(y).enumerate() {
@@ -182,4 +182,83 @@ fn espo_alphappo_and_vmpo_train_on_cartpole_and_pendulum_without_nan() {
             assert_eq!(epochs, 3, "{what}");
         }
     }
+}
+
+/// Every epoch's rows of a run of `config`.
+fn rows(config: TrainConfig) -> Vec<apo_train::ProgressRow> {
+    let mut trainer = Trainer::<NdArray, _, _>::mlp(config, &Default::default(), 1).expect("valid");
+    let stop = AtomicBool::new(false);
+    let mut rows = Vec::new();
+    while let Some(epoch) = trainer.epoch(&stop, &mut |_| {}).expect("finite") {
+        rows.push(epoch.row.timeless());
+    }
+    rows
+}
+
+#[test]
+fn evaluation_changes_no_training_number_and_is_reproducible() {
+    // normalized observations: the evaluation reads the statistics and must not update them
+    let mut config = small(Algorithm::Apo, "Pendulum-v1", 4, 400);
+    config.normalize_obs = true;
+    let plain = rows(config.clone());
+    config.eval_every = 2;
+    config.eval_episodes = 3;
+    config.eval_deterministic = false;
+    let evaluated = rows(config.clone());
+    assert_eq!(evaluated.len(), 4);
+    for (e, p) in evaluated.iter().zip(&plain) {
+        assert_eq!(&e.clone().without_evaluation(), p, "epoch {}", p.epoch);
+    }
+    // epochs 2 and 4 evaluate 3 Pendulum episodes of 200 steps
+    for row in &evaluated {
+        let evaluates = row.epoch % 2 == 0;
+        assert_eq!(
+            row.eval_ret_mean.is_some(),
+            evaluates,
+            "epoch {}",
+            row.epoch
+        );
+        if evaluates {
+            assert_eq!(row.eval_len_mean, Some(200.0));
+            assert_eq!(row.eval_unstable_episodes, Some(0));
+            let (mean, min) = (row.eval_ret_mean.unwrap(), row.eval_ret_min.unwrap());
+            assert!(min <= mean && mean < 0.0, "{row:?}");
+            // three episodes: CVaR 10 % is the worst one
+            assert_eq!(row.eval_ret_cvar10, Some(min));
+        }
+    }
+    assert_eq!(
+        rows(config.clone()),
+        evaluated,
+        "same seed, same evaluation"
+    );
+    // the deterministic evaluation acts differently from the sampled one
+    config.eval_deterministic = true;
+    let deterministic = rows(config);
+    assert_ne!(deterministic[1].eval_ret_mean, evaluated[1].eval_ret_mean);
+    assert_eq!(
+        deterministic[1].clone().without_evaluation(),
+        evaluated[1].clone().without_evaluation()
+    );
+}
+
+#[test]
+fn evaluation_needs_a_registered_environment() {
+    let mut config = small(Algorithm::Ppo, "CartPole-v1", 1, 32);
+    config.eval_every = 1;
+    let envs = apo_envs::VecEnv::make("CartPole-v1", 2).expect("envs");
+    let error = Trainer::<NdArray, _, HostActor>::from_envs(
+        config.clone(),
+        envs,
+        &Default::default(),
+        |c, o, a| c.mlp_policy(o, a),
+    )
+    .err()
+    .expect("refused");
+    assert!(error.to_string().contains("eval_every"), "{error}");
+    config.eval_episodes = 0;
+    let error = Trainer::<NdArray, _, _>::mlp(config, &Default::default(), 1)
+        .err()
+        .expect("refused");
+    assert!(error.to_string().contains("eval_episodes"), "{error}");
 }

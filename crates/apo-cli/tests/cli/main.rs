@@ -152,6 +152,92 @@ fn environment_threads_do_not_change_the_run() {
 }
 
 #[test]
+fn evaluation_keeps_the_best_checkpoint_changes_no_training_number_and_resumes_exactly() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let evaluation = [
+        "--set",
+        "normalize_obs=true",
+        "--set",
+        "eval_every=1",
+        "--set",
+        "eval_episodes=3",
+        "--set",
+        "eval_best=\"worst\"",
+    ];
+    let whole = tmp.path().join("whole");
+    train(&whole, "ppo", &evaluation);
+    let plain = tmp.path().join("plain");
+    train(&plain, "ppo", &evaluation[..2]);
+    let rows = timeless(&whole);
+    let without: Vec<ProgressRow> = rows
+        .iter()
+        .cloned()
+        .map(ProgressRow::without_evaluation)
+        .collect();
+    assert_eq!(without, timeless(&plain), "evaluation changed training");
+    assert!(rows.iter().all(|r| r.eval_ret_min.is_some()), "{rows:?}");
+    // the best checkpoint is the epoch of the best worst evaluation return (the first of ties)
+    let best = rows
+        .iter()
+        .fold(None, |b: Option<&ProgressRow>, r| match b {
+            Some(b) if b.eval_ret_min >= r.eval_ret_min => Some(b),
+            _ => Some(r),
+        })
+        .expect("rows")
+        .epoch;
+    let checkpoint_epoch = |run: &Path| {
+        ok(&[
+            "eval",
+            "--run",
+            path(run),
+            "--checkpoint",
+            "best",
+            "--episodes",
+            "1",
+        ])
+        .split("checkpoint_epoch=")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse::<usize>().ok())
+        .expect("an epoch")
+    };
+    assert_eq!(checkpoint_epoch(&whole), best);
+    // a run resumed after 2 epochs: the same rows, the same best checkpoint
+    let parts = tmp.path().join("parts");
+    let mut first = vec![
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "2",
+        "--steps-per-epoch",
+        "600",
+        "--seed",
+        "7",
+        "--quiet",
+        "--out",
+        path(&parts),
+    ];
+    first.extend(evaluation);
+    ok(&first);
+    ok(&[
+        "train",
+        "--resume",
+        path(&parts),
+        "--epochs",
+        "3",
+        "--quiet",
+    ]);
+    assert_eq!(timeless(&parts), rows, "resumed run differs");
+    assert_eq!(checkpoint_epoch(&parts), best);
+    // a run without evaluation has no best checkpoint, and says so
+    let err = fails(&["eval", "--run", path(&plain), "--checkpoint", "best"]);
+    assert!(err.contains("no best checkpoint"), "{err}");
+}
+
+#[test]
 fn resumed_run_matches_uninterrupted_run() {
     let tmp = tempfile::tempdir().expect("tempdir");
     // V-MPO: its learned η and α (columns eta, alpha) continue from the checkpoint

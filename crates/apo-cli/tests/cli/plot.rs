@@ -21,6 +21,8 @@ pub fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> Progr
         ep_ret_min: Some(min),
         ep_ret_max: Some(max),
         ep_ret_std: Some(1.0),
+        ep_ret_cvar10: Some(min),
+        ep_ret_q10: Some(min),
         ep_len_mean: Some(100.0),
         success_rate: None,
         bound: Some(mean),
@@ -42,11 +44,18 @@ pub fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> Progr
         eta: None,
         alpha: None,
         unstable_episodes: 0,
+        eval_ret_mean: None,
+        eval_ret_min: None,
+        eval_ret_cvar10: None,
+        eval_ret_std: None,
+        eval_len_mean: None,
+        eval_unstable_episodes: None,
         steps_per_s: 1000.0,
         time_s: epoch as f64,
         rollout_s: 0.5,
         update_pi_s: 0.25,
         update_v_s: 0.25,
+        eval_s: 0.0,
     }
 }
 

@@ -84,6 +84,8 @@ fn report_numbers_by_hand() {
         Ok(Baseline {
             mean: 10.0,
             worst: 5.0,
+            cvar10: 5.0,
+            q10: 6.0,
         })
     })
     .expect("report");
@@ -142,6 +144,67 @@ fn report_numbers_by_hand() {
     assert_eq!(field(&records[0], "worst_all_std"), "1");
     assert_eq!(field(&records[1], "variant"), "omega1=0.01");
     assert_eq!(field(&records[2], "random_worst"), "5");
+
+    // statistics over environments and runs; with TRPO normalization on the mean return
+    // (last 2): random 10, TRPO's runs 10 and 20 (mean 15) score 0 and 2, APO's 25 and 35
+    // score 3 and 5, the weak setting's 1 scores Δ1/Δ2 = −9/5
+    let options = |normalization| report::StatsOptions {
+        normalization,
+        bootstrap: apo_cli::stats::StratifiedBootstrap {
+            reps: 300,
+            level: 0.95,
+            seed: 1,
+        },
+    };
+    let statistics = report::statistics(&report, &options(report::Normalization::Trpo));
+    assert_eq!(statistics.len(), report::RunMetric::ALL.len());
+    let of = |statistics: &[report::MetricStatistics], metric| {
+        statistics
+            .iter()
+            .find(|m| m.metric == metric)
+            .and_then(|m| m.analysis.clone())
+            .expect("an analysis")
+    };
+    let a = of(&statistics, report::RunMetric::MeanLast);
+    assert_eq!(a.tasks, ["CartPole-v1"]);
+    let point = |a: &apo_cli::stats::Analysis, label: &str, aggregate: &str| {
+        a.aggregates[label][aggregate].point
+    };
+    assert!(close(point(&a, "trpo", "mean"), 1.0));
+    assert!(close(point(&a, "apo", "mean"), 4.0));
+    assert!(close(point(&a, "apo", "iqm"), 4.0));
+    assert!(close(point(&a, "apo (omega1=0.01)", "mean"), -1.8));
+    // optimality gap: TRPO's scores clipped at 1 are 0 and 1
+    assert!(close(point(&a, "trpo", "optimality_gap"), 0.5));
+    let improvement = |a: &apo_cli::stats::Analysis, x: &str, y: &str| {
+        a.probability_of_improvement
+            .iter()
+            .find(|p| p.x == x && p.y == y)
+            .expect("a pair")
+            .estimate
+    };
+    let p = improvement(&a, "apo", "trpo");
+    assert_eq!((p.point, p.lower, p.upper), (1.0, 1.0, 1.0));
+    // min–max over all runs (1 … 35): APO's 25 and 35 → 24/34 and 1
+    let minmax = report::statistics(&report, &options(report::Normalization::MinMax));
+    let a = of(&minmax, report::RunMetric::MeanLast);
+    assert!(close(point(&a, "apo", "mean"), (24.0 / 34.0 + 1.0) / 2.0));
+    assert!(close(point(&a, "apo (omega1=0.01)", "mean"), 0.0));
+    // the risk metrics are there (rows with CVaR = worst return)
+    let a = of(&minmax, report::RunMetric::Cvar10Last);
+    assert!(close(
+        point(&a, "apo", "mean"),
+        of(&minmax, report::RunMetric::WorstLast).aggregates["apo"]["mean"].point
+    ));
+    let mut with = report.clone();
+    with.statistics = statistics;
+    let md = report::markdown(&with);
+    assert!(
+        md.contains("## Statistics over environments and runs"),
+        "{md}"
+    );
+    assert!(md.contains("| apo | 2 | 4.000 ["), "{md}");
+    assert!(md.contains("| apo | trpo | 1.000 [1.000, 1.000] |"), "{md}");
 }
 
 #[test]
@@ -205,12 +268,32 @@ fn report_command_writes_markdown_csv_and_curves() {
         .and_then(|s| s.parse().ok())
         .expect("a number");
     assert!((5.0..100.0).contains(&mean), "{line}");
-    for file in ["report.md", "report.csv", "curves-CartPole-v1.png"] {
+    assert!(
+        text.contains("## Statistics over environments and runs"),
+        "{text}"
+    );
+    assert!(text.contains("### worst return (last 1 epochs)"), "{text}");
+    for file in [
+        "report.md",
+        "report.csv",
+        "curves-CartPole-v1.png",
+        "statistics.json",
+        "profile-worst_last.png",
+        "profile-cvar10_last.svg",
+        "intervals-mean_last.png",
+        "intervals-q10_last.svg",
+    ] {
         let len = std::fs::metadata(out.join(file))
             .map(|m| m.len())
             .unwrap_or(0);
         assert!(len > 100, "{file}: {len} bytes");
     }
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("statistics.json")).expect("statistics.json"),
+    )
+    .expect("JSON");
+    assert_eq!(json[3]["metric"], "worst_last");
+    assert_eq!(json[3]["analysis"]["tasks"][0], "CartPole-v1");
     let err = fails(&["report", path(&t.join("nothing"))]);
     assert!(
         err.contains("neither a run directory nor a folder of runs"),
@@ -274,6 +357,26 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
     let first = progress::read(&out.join(names[0]).join("progress.csv")).expect("progress");
     let text = run_sweep(sweep("2", "algo.omega1=0.001,0.01"));
     assert!(text.contains("finished 0 (skipped 6"), "{text}");
+    // a finished run kept as its results only (config.toml, progress.csv and the marker, as
+    // a campaign commits them) is skipped too, and a run whose progress falls short is run again
+    let copy = tmp.path().join("copy");
+    std::fs::create_dir(&copy).expect("mkdir");
+    for file in ["sweep.toml", "cells.csv"] {
+        std::fs::copy(out.join(file), copy.join(file)).expect("copy");
+    }
+    for name in names {
+        std::fs::create_dir(copy.join(name)).expect("mkdir");
+        for file in ["config.toml", "progress.csv", ".apo-run"] {
+            std::fs::copy(out.join(name).join(file), copy.join(name).join(file)).expect("copy");
+        }
+    }
+    let short = copy.join(names[5]).join("progress.csv");
+    progress::write(&short, &first[..1]).expect("write");
+    let mut again = sweep("2", "algo.omega1=0.001,0.01");
+    *again.last_mut().expect("--out") = path(&copy).into();
+    let text = run_sweep(again);
+    assert!(text.contains("finished 1 (skipped 5"), "{text}");
+    assert_eq!(apo_cli::sweep::epochs_done(&copy.join(names[5])), 2);
     // more epochs: every run resumes from its checkpoint, its first epochs unchanged
     let text = run_sweep(sweep("3", "algo.omega1=0.001,0.01"));
     assert!(text.contains("finished 6 (skipped 0"), "{text}");

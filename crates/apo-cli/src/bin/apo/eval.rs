@@ -19,7 +19,8 @@ pub struct EvalArgs {
     /// Seed of the evaluation episodes.
     #[arg(long, default_value_t = 12345)]
     seed: u64,
-    /// Which checkpoint: `latest`, or an epoch kept by keep_checkpoint_every.
+    /// Which checkpoint: `latest`, `best` (the best evaluation of a run with eval_every), or an
+    /// epoch kept by keep_checkpoint_every.
     #[arg(long, default_value = "latest")]
     checkpoint: Which,
 }

@@ -17,6 +17,7 @@ mod list;
 mod plot;
 mod report;
 mod signals;
+mod stats;
 mod summary;
 mod sweep;
 mod train;
@@ -56,9 +57,17 @@ enum Command {
     Summary(summary::SummaryArgs),
     /// The paper's metrics per environment and algorithm, mean ± std over seeds: average mean
     /// and worst return over all and the last N epochs, the bound and its confidence, the
-    /// TRPO-normalized scores, the count of "best" per metric; Markdown on stdout, and with
-    /// --out also report.md, report.csv and learning curves (mean ± std over seeds).
+    /// TRPO-normalized scores, the count of "best" per metric; then statistics over
+    /// environments and runs of every metric (the paper's four, CVaR 10 %, 10 % quantile):
+    /// mean, median, IQM, optimality gap with stratified-bootstrap 95 % intervals, the
+    /// probability of improvement of each pair, performance profiles. Markdown on stdout, and
+    /// with --out also report.md, report.csv, statistics.json, learning curves (mean ± std over
+    /// seeds), and profile-<metric> and intervals-<metric> figures (PNG and SVG).
     Report(report::ReportArgs),
+    /// Statistics of a score file (`algorithm,task,score` per run) as rliable computes them:
+    /// mean, median, interquartile mean and optimality gap with stratified-bootstrap 95 %
+    /// intervals, the probability of improvement of each pair, performance profiles.
+    Stats(stats::StatsArgs),
     /// Run a grid of config values × seeds × algorithms × environments, each a separate run
     /// under one directory, several at once; run it again to resume (finished runs are
     /// skipped, interrupted ones resumed). Ends with each cell's metric over its seeds.
@@ -130,6 +139,7 @@ fn main() -> ExitCode {
         Command::Theory(args) => done(apo_cli::theory::run(&args)),
         Command::Report(args) => done(report::run(&args)),
         Command::Summary(args) => done(summary::run(&args)),
+        Command::Stats(args) => done(stats::run(&args)),
     };
     result.unwrap_or_else(|e| {
         eprintln!("error: {e:#}");

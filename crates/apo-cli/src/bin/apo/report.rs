@@ -26,6 +26,16 @@ pub struct ReportArgs {
     /// Moving average of the curves over this many epochs (1: none).
     #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
     smooth: usize,
+    /// Scores of the statistics section: `trpo` (the paper's TRPO-normalized score against
+    /// the random policy) or `minmax` (per environment over the compared runs).
+    #[arg(long, value_parser = ["trpo", "minmax"], default_value = "trpo")]
+    normalize: String,
+    /// Bootstrap resamples of each interval of the statistics section.
+    #[arg(long, default_value_t = 2000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000_000))]
+    reps: usize,
+    /// Seed of the bootstrap (the same seed gives the same report).
+    #[arg(long, default_value_t = 0)]
+    ci_seed: u64,
 }
 
 pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
@@ -37,9 +47,22 @@ pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     }
     let runs = report::find_runs(&args.runs)?;
     let episodes = args.random_episodes as usize;
-    let report = report::report(&runs, args.last as usize, &mut |env, options| {
+    let mut report = report::report(&runs, args.last as usize, &mut |env, options| {
         report::random_baseline(env, options, episodes, 0)
     })?;
+    let options = report::StatsOptions {
+        normalization: if args.normalize == "minmax" {
+            report::Normalization::MinMax
+        } else {
+            report::Normalization::Trpo
+        },
+        bootstrap: apo_cli::stats::StratifiedBootstrap {
+            reps: args.reps,
+            level: 0.95,
+            seed: args.ci_seed,
+        },
+    };
+    report.statistics = report::statistics(&report, &options);
     print!("{}", report::markdown(&report));
     if let Some(out) = &args.out {
         for path in report::write(&report, out, &args.image, args.smooth)? {
