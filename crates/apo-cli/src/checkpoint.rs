@@ -403,7 +403,7 @@ pub fn locate(run: &Path, which: &Which) -> anyhow::Result<Option<PathBuf>> {
                 .find(|d| d.is_dir());
             if found.is_none() {
                 bail!(
-                    "{} has no best checkpoint: it is written by runs with eval_every > 0 once an evaluation has                      finished episodes",
+                    "{} has no best checkpoint: it is written by runs with eval_every > 0 once an evaluation has finished episodes",
                     run.display()
                 );
             }

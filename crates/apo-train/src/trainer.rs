@@ -155,7 +155,7 @@ where
             return Err(TrainError::Config(ConfigError {
                 field: "eval_every".into(),
                 value: config.eval_every.to_string(),
-                rule: "must be 0 with Trainer::from_envs (the evaluation makes its environment from the registry: use                        Trainer::new with a registered environment)"
+                rule: "must be 0 with Trainer::from_envs (the evaluation makes its environment from the registry: use Trainer::new with a registered environment)"
                     .into(),
             }));
         }
