@@ -162,7 +162,14 @@ pub enum Preset {
     /// single policy step; on the Gym MuJoCo and the hand tasks, no bootstrap at the time limit
     /// and every episode reset with the run's seed.
     Paper,
+    /// APO and PAPO with the recommended variant (docs/algorithms.md, "The robust preset"): the
+    /// penalty in the advantages' units (scale-free), min_J_sq's switch off, one ω for every
+    /// task. Other algorithms are unchanged.
+    Robust,
 }
+
+/// The robust preset's ω1 and ω2, in the advantages' units (docs/results/variants.md).
+const ROBUST_OMEGA: (f64, f64) = (0.01, 0.005);
 
 impl Preset {
     /// The preset's settings for a run of `algo` on the environment `env`, as `(key, value)`
@@ -193,6 +200,13 @@ impl Preset {
                 }
                 settings
             }
+            Preset::Robust if matches!(algo, Algorithm::Apo | Algorithm::Papo) => vec![
+                ("algo.penalty_units", Text("advantage".into())),
+                ("algo.switch", Text("off".into())),
+                ("algo.omega1", Float(ROBUST_OMEGA.0)),
+                ("algo.omega2", Float(ROBUST_OMEGA.1)),
+            ],
+            Preset::Robust => Vec::new(),
         }
     }
 }

@@ -6,6 +6,7 @@ use apo_theory::bound::{CrossTerm, MuNorm, OverStates, Reading};
 use apo_theory::checks::{
     check_lower_bound, check_selberg, iterate, Counterexample, Problems, Step,
 };
+use apo_theory::practical;
 
 /// `apo theory`'s options.
 #[derive(Debug, Clone, clap::Args)]
@@ -55,6 +56,23 @@ pub struct TheoryArgs {
     /// Sampled episodes per MDP in check (d).
     #[arg(long, default_value_t = 20_000, value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
     pub episodes: u64,
+    /// MDPs (seeds 0..N) for check (e): the practical APO's trust-region step and its
+    /// variants, evaluated exactly.
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(0..=100_000))]
+    pub practical_seeds: u64,
+    /// Updates per MDP in check (e).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    pub practical_iterations: u64,
+    /// Added to every reward in check (e) (a positive offset: positive values, as with the
+    /// survival bonus of the locomotion tasks).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub reward_offset: f64,
+    /// Multiplies every reward in check (e), after the offset (> 0).
+    #[arg(long, default_value_t = 1.0)]
+    pub reward_scale: f64,
+    /// Run check (e) only.
+    #[arg(long)]
+    pub practical_only: bool,
 }
 
 impl TheoryArgs {
@@ -69,6 +87,15 @@ impl TheoryArgs {
             bail!(
                 "--temperature {} must be a finite number ≥ 0",
                 self.temperature
+            );
+        }
+        if !self.reward_offset.is_finite() {
+            bail!("--reward-offset {} must be finite", self.reward_offset);
+        }
+        if !(self.reward_scale.is_finite() && self.reward_scale > 0.0) {
+            bail!(
+                "--reward-scale {} must be a finite number > 0",
+                self.reward_scale
             );
         }
         if !(self.max_kl.is_finite() && self.max_kl > 0.0) {
@@ -115,13 +142,67 @@ fn drops(values: &[f64], tol: f64) -> (usize, f64) {
     })
 }
 
-/// Runs the four checks and prints the report.
+/// Runs the five checks (or only (e)) and prints the report.
 pub fn run(args: &TheoryArgs) -> anyhow::Result<()> {
     let (problems, norm) = args.validate()?;
     println!(
         "Theorem 1 on random tabular MDPs: {} states, {} actions, γ {}, π_j logits × {}, k ∈ {:?}, ‖μᵀ‖∞ read as {}, MV cross term {}",
         args.states, args.actions, args.gamma, args.temperature, args.k, args.mu_norm, args.cross_term
     );
+    if !args.practical_only {
+        theorem_checks(args, &problems, norm)?;
+    }
+    practical_check(args, &problems)
+}
+
+/// (e): the practical trust-region step of each variant, exactly, as a table.
+fn practical_check(args: &TheoryArgs, problems: &Problems) -> anyhow::Result<()> {
+    if args.practical_seeds == 0 {
+        return Ok(());
+    }
+    println!(
+        "(e) the practical APO's trust-region step (δ {}), exact, {} MDPs × {} updates per variant, rewards r ↦ {} · (r + {}):",
+        args.max_kl, args.practical_seeds, args.practical_iterations, args.reward_scale, args.reward_offset
+    );
+    println!(
+        "    | k | variant | accepted | full steps | median KL | B raised | B lowered (largest drop) | mean ΔB | mean ΔJ | mean ΔVar | switch on |"
+    );
+    println!("    |---|---|---|---|---|---|---|---|---|---|---|");
+    for &k in &args.k {
+        for (name, variant) in practical::variants(k, args.max_kl) {
+            let s = practical::run(
+                problems,
+                0..args.practical_seeds,
+                &variant,
+                args.practical_iterations as usize,
+                practical::Rewards {
+                    offset: args.reward_offset,
+                    scale: args.reward_scale,
+                },
+            )
+            .with_context(|| format!("check (e), {name}, k {k}"))?;
+            let pct = |n: usize| 100.0 * n as f64 / s.updates.max(1) as f64;
+            println!(
+                "    | {k} | {name} | {:.0} % | {:.0} % | {:.1e} | {} | {} ({:.1e}) | {:+.4} | {:+.4} | {:+.4} | {} |",
+                pct(s.accepted),
+                pct(s.full_steps),
+                s.median_kl,
+                s.bound_raised,
+                s.bound_lowered,
+                s.largest_drop,
+                s.mean_bound_gain,
+                s.mean_j_gain,
+                s.mean_variance_change,
+                s.switch_on
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Checks (a) to (d).
+fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyhow::Result<()> {
+    let problems = *problems;
 
     let lb = check_lower_bound(&problems, 0..args.seeds, &args.k, args.draws as usize, norm)
         .context("check (a)")?;

@@ -15,7 +15,7 @@
 use crate::collective::Comm;
 
 /// Host arrays of one epoch's transitions, ready to become tensors. Row-major.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Batch {
     /// Number of transitions `n`.
     pub len: usize,
@@ -35,6 +35,28 @@ pub struct Batch {
     pub adv: Vec<f32>,
     /// Rewards-to-go, `[n]`.
     pub ret: Vec<f32>,
+    /// The standard deviation σ_A the raw GAE advantages were divided by when `adv` was
+    /// normalized (over every rank's batch); 1 for a batch whose `adv` was given as it is.
+    /// APO's scale-free penalty (`PenaltyUnits::Advantage`) measures `delta` and `value` in
+    /// this unit.
+    pub adv_scale: f64,
+}
+
+impl Default for Batch {
+    fn default() -> Self {
+        Self {
+            len: 0,
+            obs: Vec::new(),
+            actions: Vec::new(),
+            logp: Vec::new(),
+            dist: Vec::new(),
+            value: Vec::new(),
+            delta: Vec::new(),
+            adv: Vec::new(),
+            ret: Vec::new(),
+            adv_scale: 1.0,
+        }
+    }
 }
 
 impl Batch {
@@ -64,6 +86,7 @@ impl Batch {
             delta: part(&self.delta),
             adv: part(&self.adv),
             ret: part(&self.ret),
+            adv_scale: self.adv_scale,
         }
     }
 }
@@ -103,6 +126,7 @@ impl RolloutBuffer {
             delta: Vec::with_capacity(capacity),
             adv: Vec::with_capacity(capacity),
             ret: Vec::with_capacity(capacity),
+            adv_scale: 1.0,
         };
         Self {
             layout,
@@ -233,23 +257,24 @@ impl RolloutBuffer {
             batch.adv.extend(part.adv);
             batch.ret.extend(part.ret);
         }
-        normalize_over(&mut batch.adv, comm);
+        batch.adv_scale = normalize_over(&mut batch.adv, comm);
         batch
     }
 }
 
 /// Normalizes `x` in place to mean 0 and (population) standard deviation 1; a constant
-/// vector becomes all zeros.
-pub fn normalize(x: &mut [f32]) {
-    normalize_over(x, &Comm::default());
+/// vector becomes all zeros. Returns the standard deviation it divided by (at least 1e-8;
+/// 1 for an empty `x`).
+pub fn normalize(x: &mut [f32]) -> f64 {
+    normalize_over(x, &Comm::default())
 }
 
 /// [`normalize`] with the mean and standard deviation of the union of every rank's `x`.
-pub fn normalize_over(x: &mut [f32], comm: &Comm) {
+pub fn normalize_over(x: &mut [f32], comm: &Comm) -> f64 {
     let mut totals = [x.iter().map(|&v| f64::from(v)).sum::<f64>(), x.len() as f64];
     comm.sum(&mut totals);
     if totals[1] == 0.0 {
-        return;
+        return 1.0;
     }
     let n = totals[1];
     let mean = totals[0] / n;
@@ -263,4 +288,5 @@ pub fn normalize_over(x: &mut [f32], comm: &Comm) {
     for v in x {
         *v = ((f64::from(*v) - mean) / std) as f32;
     }
+    std
 }

@@ -52,9 +52,13 @@ pub use fisher::FisherOperator;
 pub use kernels::Kernels;
 pub use learner::{Learner, UpdateReport};
 pub use metrics::EpisodeStats;
-pub use objective::{ApoParams, HMax, Multipliers, Objective, ObjectiveTerms, VmpoParams};
+pub use objective::{
+    ApoParams, HMax, Multipliers, Objective, ObjectiveTerms, PenaltyUnits, Switch, VmpoParams,
+};
 pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
 pub use proximal::{ProximalConfig, ProximalReport, ProximalStep};
 pub use tensor_batch::TensorBatch;
-pub use trust_region::{LineSearchOutcome, Rejections, TrustRegionConfig, TrustRegionReport};
+pub use trust_region::{
+    Acceptance, LineSearchOutcome, Rejections, TrustRegionConfig, TrustRegionReport,
+};
 pub use value::{ValueConfig, ValueNet};

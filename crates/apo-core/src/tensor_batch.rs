@@ -27,6 +27,8 @@ pub struct TensorBatch<B: Backend> {
     pub adv: Tensor<B, 1>,
     /// Rewards-to-go, `[n]`.
     pub ret: Tensor<B, 1>,
+    /// The standard deviation σ_A the raw advantages were divided by ([`Batch::adv_scale`]).
+    pub adv_scale: f64,
     /// The ranks whose batches, together, are the update's batch (this one is rank
     /// `comm.rank()`'s part); means over the batch are taken with [`Comm::mean`].
     pub comm: Comm,
@@ -62,6 +64,7 @@ impl<B: Backend> TensorBatch<B> {
             delta: t1(&batch.delta, device),
             adv: t1(&batch.adv, device),
             ret: t1(&batch.ret, device),
+            adv_scale: batch.adv_scale,
             comm: Comm::default(),
         }
     }
@@ -121,6 +124,7 @@ impl<B: Backend> TensorBatch<B> {
             delta: f.one(&self.delta),
             adv: f.one(&self.adv),
             ret: f.one(&self.ret),
+            adv_scale: self.adv_scale,
             comm: self.comm.clone(),
         }
     }

@@ -9,7 +9,10 @@
 //! 2. the full step `Δ = sqrt(2δ / (xᵀFx + step_epsilon)) · x` — the maximizer of the linearized objective
 //!    inside the quadratic trust region `½ ΔᵀFΔ ≤ δ`;
 //! 3. backtracking: try `θ_j + ξ^i Δ` for `i = 0, 1, …` (ξ = 0.8, up to 100 tries) and accept
-//!    the first with mean KL ≤ δ and objective ≥ objective(θ_j); if none, keep θ_j.
+//!    the first with mean KL ≤ δ and objective ≥ objective(θ_j) (the paper's
+//!    [`Acceptance::Improvement`]), or, with [`Acceptance::Ratio`], an actual improvement of
+//!    at least `accept_ratio` times the linear model's `ξ^i gᵀΔ` (the original TRPO's test);
+//!    if none, keep θ_j.
 //!
 //! With several ranks ([`crate::collective`]) the gradient and every product `F v` are summed
 //! over the ranks' shares, and the line search's KL and objective are means over every rank's
@@ -27,6 +30,26 @@ use crate::objective::Objective;
 use crate::policy::{Policy, PolicyFamily};
 use crate::tensor_batch::TensorBatch;
 use crate::validate::{check, ConfigError};
+
+/// Which tries of the backtracking line search are accepted (inside the KL radius).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Acceptance {
+    /// `objective(θ) ≥ objective(θ_j)` (the paper's Algorithm 1 and its code).
+    #[default]
+    Improvement,
+    /// `objective(θ) − objective(θ_j) > 0` and at least `accept_ratio` times the improvement
+    /// `ξ^i · gᵀΔ` the linearized objective predicts for the try (Schulman et al. 2015's
+    /// line search, ratio 0.1).
+    Ratio,
+}
+
+/// The improvement ratio of [`Acceptance::Ratio`] by default (Schulman et al.'s 0.1).
+pub const DEFAULT_ACCEPT_RATIO: f64 = 0.1;
+
+fn default_accept_ratio() -> f64 {
+    DEFAULT_ACCEPT_RATIO
+}
 
 /// Settings of the trust-region step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -47,6 +70,12 @@ pub struct TrustRegionConfig {
     /// code: 1e-8; default 0).
     #[serde(default)]
     pub step_epsilon: f64,
+    /// Which tries the line search accepts (default: the paper's).
+    #[serde(default)]
+    pub acceptance: Acceptance,
+    /// The smallest actual / predicted improvement [`Acceptance::Ratio`] accepts, in (0, 1].
+    #[serde(default = "default_accept_ratio")]
+    pub accept_ratio: f64,
 }
 
 impl Default for TrustRegionConfig {
@@ -59,6 +88,8 @@ impl Default for TrustRegionConfig {
             backtrack_coeff: 0.8,
             backtrack_iters: 100,
             step_epsilon: 0.0,
+            acceptance: Acceptance::Improvement,
+            accept_ratio: DEFAULT_ACCEPT_RATIO,
         }
     }
 }
@@ -108,6 +139,12 @@ impl TrustRegionConfig {
             "trust_region.step_epsilon",
             self.step_epsilon,
             "must be ≥ 0",
+        )?;
+        check(
+            self.accept_ratio > 0.0 && self.accept_ratio <= 1.0,
+            "trust_region.accept_ratio",
+            self.accept_ratio,
+            "must be in (0, 1]",
         )
     }
 
@@ -139,6 +176,14 @@ impl TrustRegionConfig {
             (
                 "trust_region.step_epsilon",
                 "added to xᵀFx in the step length sqrt(2δ / (xᵀFx + ε)) (the paper's code: 1e-8); ≥ 0",
+            ),
+            (
+                "trust_region.acceptance",
+                "which line-search tries are accepted inside the KL radius: \"improvement\" (objective ≥ objective(θ_j), the paper) or \"ratio\" (actual / predicted improvement ≥ accept_ratio, the original TRPO)",
+            ),
+            (
+                "trust_region.accept_ratio",
+                "the smallest actual / predicted improvement with acceptance = \"ratio\" (TRPO: 0.1); (0, 1]",
             ),
         ]
         .map(|(k, d)| (k.to_string(), d))
@@ -249,7 +294,8 @@ pub struct TrustRegionReport {
 pub struct Rejections {
     /// Tries whose mean KL exceeded δ.
     pub kl: usize,
-    /// Tries inside the KL radius whose objective was below objective(θ_j).
+    /// Tries inside the KL radius whose objective was below objective(θ_j) (with
+    /// [`Acceptance::Ratio`]: whose improvement fell short of the ratio).
     pub objective: usize,
 }
 
@@ -339,6 +385,8 @@ where
     }
     let scale = (2.0 * config.max_kl / denominator).sqrt();
     let full_step: Vec<f64> = cg.x.iter().map(|xi| scale * xi).collect();
+    // the linearized objective's improvement for the full step, gᵀΔ
+    let predicted = dot(&g, &full_step);
 
     let mut fraction = 1.0;
     let mut rejections = Rejections::default();
@@ -349,7 +397,14 @@ where
             .map(|(t, s)| t + fraction * s)
             .collect();
         let (kl, objective_after) = evaluate(family, objective, &candidate, batch);
-        if kl <= config.max_kl && objective_after >= objective_before {
+        let improved = match config.acceptance {
+            Acceptance::Improvement => objective_after >= objective_before,
+            Acceptance::Ratio => {
+                let actual = objective_after - objective_before;
+                actual > 0.0 && actual >= config.accept_ratio * fraction * predicted
+            }
+        };
+        if kl <= config.max_kl && improved {
             return TrustRegionReport {
                 theta: candidate,
                 full_step,

@@ -107,6 +107,7 @@ fn random_batch(n: usize, obs_dim: usize, seed: u64) -> apo_core::Batch {
         adv: draw(n, 1.0),
         obs,
         ret,
+        adv_scale: 1.0,
     }
 }
 

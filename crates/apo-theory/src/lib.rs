@@ -46,6 +46,7 @@ pub mod eval;
 pub mod mdp;
 pub mod montecarlo;
 pub mod policy;
+pub mod practical;
 
 pub use eval::Evaluation;
 pub use mdp::{Mdp, PROB_TOL};

@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::{AlgorithmConfig, Common, ConfigError, Penalty, PolicyStep, Settings};
-use crate::objective::Objective;
+use crate::objective::{Objective, PenaltyUnits, Switch};
 use crate::proximal::ProximalConfig;
 use crate::trust_region::TrustRegionConfig;
 
@@ -25,6 +25,12 @@ pub struct ApoConfig {
     pub omega2: f64,
     /// Where `|H|_max` comes from.
     pub h_max: super::HMaxMode,
+    /// The units of `delta`, `V` and ω2 in the penalty (paper: reward units).
+    #[serde(default)]
+    pub penalty_units: PenaltyUnits,
+    /// How `min_J_sq`'s switch is decided (paper: at every θ).
+    #[serde(default)]
+    pub switch: Switch,
     /// The trust-region step.
     pub trust_region: TrustRegionConfig,
     /// The value network's Adam update.
@@ -38,6 +44,8 @@ impl ApoConfig {
             omega1: self.omega1,
             omega2: self.omega2,
             h_max: self.h_max,
+            penalty_units: self.penalty_units,
+            switch: self.switch,
         }
     }
 }
@@ -88,6 +96,8 @@ impl AlgorithmConfig for ApoConfig {
             omega1: penalty.omega1,
             omega2: penalty.omega2,
             h_max: penalty.h_max,
+            penalty_units: penalty.penalty_units,
+            switch: penalty.switch,
             trust_region: TrustRegionConfig::default(),
             value_update: common.value_update,
         }

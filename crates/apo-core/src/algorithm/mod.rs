@@ -28,7 +28,7 @@ use std::str::FromStr;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use crate::objective::{ApoParams, HMax, Objective};
+use crate::objective::{ApoParams, HMax, Objective, PenaltyUnits, Switch};
 use crate::proximal::{ProximalConfig, ProximalStep};
 use crate::trust_region::TrustRegionConfig;
 pub use crate::validate::ConfigError;
@@ -122,6 +122,10 @@ pub struct Penalty {
     pub omega2: f64,
     /// Where `|H|_max` comes from.
     pub h_max: HMaxMode,
+    /// The units of `delta`, `V` and ω2 (paper: reward units).
+    pub penalty_units: PenaltyUnits,
+    /// How `min_J_sq`'s switch is decided (paper: at every θ).
+    pub switch: Switch,
 }
 
 /// How `|H|_max` is obtained (paper's ablation Q3).
@@ -142,6 +146,8 @@ impl Penalty {
         omega1: 0.005,
         omega2: 0.005,
         h_max: HMaxMode::Hyperparameter,
+        penalty_units: PenaltyUnits::Reward,
+        switch: Switch::Paper,
     };
 
     fn validate(&self) -> Result<(), ConfigError> {
@@ -170,10 +176,12 @@ impl Penalty {
                 HMaxMode::Estimated => HMax::Estimated,
             },
             gamma,
+            units: self.penalty_units,
+            switch: self.switch,
         }
     }
 
-    const KEY_DOCS: [(&'static str, &'static str); 4] = [
+    const KEY_DOCS: [(&'static str, &'static str); 6] = [
         ("k", "probability factor k of the bound J − k·Var (paper: 7); ≥ 0"),
         (
             "omega1",
@@ -186,6 +194,14 @@ impl Penalty {
         (
             "h_max",
             "where |H|_max comes from: \"hyperparameter\" (ω2) or \"estimated\" (paper's ablation Q3)",
+        ),
+        (
+            "penalty_units",
+            "units of delta, V and ω2 in the penalty: \"reward\" (the paper) or \"advantage\" (divided by the advantages' normalizing std: scale-free)",
+        ),
+        (
+            "switch",
+            "min_J_sq's switch: \"paper\" (decided at every θ), \"held\" (decided at θ_j for the whole update) or \"off\" (min_J_sq = 0)",
         ),
     ];
 }

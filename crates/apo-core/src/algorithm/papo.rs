@@ -9,7 +9,7 @@ use super::{
     Settings,
 };
 use super::{HMaxMode, CLIP_DOC};
-use crate::objective::Objective;
+use crate::objective::{Objective, PenaltyUnits, Switch};
 use crate::proximal::{ProximalConfig, ProximalStep};
 
 /// PAPO's settings, `[algo.papo]`.
@@ -28,6 +28,12 @@ pub struct PapoConfig {
     pub omega2: f64,
     /// Where `|H|_max` comes from.
     pub h_max: HMaxMode,
+    /// The units of `delta`, `V` and ω2 in the penalty (paper: reward units).
+    #[serde(default)]
+    pub penalty_units: PenaltyUnits,
+    /// How `min_J_sq`'s switch is decided (paper: at every θ).
+    #[serde(default)]
+    pub switch: Switch,
     /// Clip ε ∈ (0, 1) of the probability ratio.
     pub clip: f64,
     /// The policy's Adam update.
@@ -43,6 +49,8 @@ impl PapoConfig {
             omega1: self.omega1,
             omega2: self.omega2,
             h_max: self.h_max,
+            penalty_units: self.penalty_units,
+            switch: self.switch,
         }
     }
 }
@@ -99,6 +107,8 @@ impl AlgorithmConfig for PapoConfig {
             omega1: penalty.omega1,
             omega2: penalty.omega2,
             h_max: penalty.h_max,
+            penalty_units: penalty.penalty_units,
+            switch: penalty.switch,
             clip: 0.2,
             policy_update: ProximalConfig::PAPER_POLICY,
             value_update: common.value_update,

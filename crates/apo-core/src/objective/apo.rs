@@ -13,12 +13,16 @@
 //! objective = mean_surr − k (mv + vm)
 //! ```
 //!
+//! Two settings leave the paper's form (the defaults) for the variants of
+//! `docs/algorithms.md` ("Variants that keep the step"): [`PenaltyUnits`] (the scale-free
+//! penalty) and [`Switch`] (how `min_J_sq`'s switch is decided).
+//!
 //! Every function here returns a `[1]` tensor unless said otherwise; inputs named
 //! `ratio`, `adv`, `delta`, `value`, `logp`, `logp_old` are `[batch]`. Means and maxima are over
 //! every rank's batch ([`Comm::mean`], [`Comm::max_const`]; one rank: the plain ones).
 
 use burn::tensor::backend::Backend;
-use burn::tensor::Tensor;
+use burn::tensor::{Tensor, TensorData};
 use serde::{Deserialize, Serialize};
 
 use crate::collective::Comm;
@@ -34,6 +38,39 @@ pub enum HMax {
     Estimated,
 }
 
+/// The units of the penalty's reward-valued inputs: the one-step advantages `delta`, the
+/// critic values `V` and ω2.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PenaltyUnits {
+    /// As collected, in the task's reward units (the paper). The surrogate's advantages are
+    /// normalized, the penalty's are not, so ω has to follow the reward scale.
+    #[default]
+    Reward,
+    /// Divided by σ_A, the standard deviation the GAE advantages were normalized by
+    /// ([`TensorBatch::adv_scale`]): every term is then in the surrogate's units and the
+    /// objective does not change when the rewards are multiplied by a constant. The bound it
+    /// stands for is `B_k` of the return measured in units of σ_A, i.e. `J − (k/σ_A)·Var` in
+    /// reward units.
+    Advantage,
+}
+
+/// How `min_J_sq`'s switch (`min_J_sq := 0` when the interval of `J` reaches zero) is decided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Switch {
+    /// At every evaluated θ: off when `mean_surr + mean(V) − bias < 0` (the paper). The bias
+    /// grows with the sample KL, so the switch can turn off inside the line search.
+    #[default]
+    Paper,
+    /// Once per update, at θ_j, and held for the whole line search (or all Adam iterations):
+    /// off when `mean(adv) + mean(V) < 0`, the paper's condition at θ_j (ratio 1, bias 0).
+    Held,
+    /// Always off: `min_J_sq = 0`, so VarianceMean is held at its value at θ_j, the minimum of
+    /// the exact VarianceMean bound over π (docs/algorithms.md).
+    Off,
+}
+
 /// Hyperparameters of the APO penalty.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ApoParams {
@@ -45,6 +82,26 @@ pub struct ApoParams {
     pub h_max: HMax,
     /// Discount factor γ of the task.
     pub gamma: f64,
+    /// The units of `delta`, `V` and ω2 (paper: [`PenaltyUnits::Reward`]).
+    #[serde(default)]
+    pub units: PenaltyUnits,
+    /// How `min_J_sq`'s switch is decided (paper: [`Switch::Paper`]).
+    #[serde(default)]
+    pub switch: Switch,
+}
+
+impl ApoParams {
+    /// The paper's penalty: reward units, the switch decided at every θ.
+    pub fn paper(k: f64, omega1: f64, h_max: HMax, gamma: f64) -> Self {
+        Self {
+            k,
+            omega1,
+            h_max,
+            gamma,
+            units: PenaltyUnits::Reward,
+            switch: Switch::Paper,
+        }
+    }
 }
 
 /// `exp(logp − logp_old)` → `[batch]`.
@@ -93,17 +150,33 @@ pub fn lower_bound_bias<B: Backend>(
 }
 
 /// The minimal squared performance `min_J_sq = mean_surr² + 2 · mean(V) · mean_surr`,
-/// switched to 0 when `mean_surr + mean(V) − bias < 0` (the interval of `J` reaches zero).
+/// switched to 0 where `off` (`[1]`, e.g. [`min_j_sq_off`]: the interval of `J` reaches zero).
 /// The switch is a condition, not differentiated.
 pub fn min_j_sq<B: Backend>(
     mean_surr: Tensor<B, 1>,
     mean_value: Tensor<B, 1>,
-    bias: Tensor<B, 1>,
+    off: Tensor<B, 1, burn::tensor::Bool>,
 ) -> Tensor<B, 1> {
-    let value =
-        mean_surr.clone().square() + (mean_value.clone() * mean_surr.clone()).mul_scalar(2.0);
-    let off = min_j_sq_off(mean_surr, mean_value, bias);
+    let value = mean_surr.clone().square() + (mean_value * mean_surr).mul_scalar(2.0);
     value.mask_fill(off, 0.0)
+}
+
+/// Whether `min_J_sq`'s switch is off under `switch` → `[1]` bool, without gradient:
+/// [`Switch::Paper`] by [`min_j_sq_off`] at this θ; [`Switch::Held`] by the same condition at
+/// θ_j, `mean(adv) + mean(V) < 0` (`adv`: `[batch]`); [`Switch::Off`] always.
+pub fn switch_off<B: Backend>(
+    comm: &Comm,
+    switch: Switch,
+    mean_surr: Tensor<B, 1>,
+    mean_value: Tensor<B, 1>,
+    bias: Tensor<B, 1>,
+    adv: Tensor<B, 1>,
+) -> Tensor<B, 1, burn::tensor::Bool> {
+    match switch {
+        Switch::Paper => min_j_sq_off(mean_surr, mean_value, bias),
+        Switch::Held => (comm.mean(adv) + mean_value).detach().lower_elem(0.0),
+        Switch::Off => Tensor::from_data(TensorData::from([true]), &mean_value.device()),
+    }
 }
 
 /// Whether [`min_j_sq`]'s switch is off (`mean_surr + mean(V) − bias < 0`) → `[1]` bool,

@@ -17,7 +17,7 @@ use burn::tensor::Tensor;
 
 use crate::distribution::DistParams;
 use crate::tensor_batch::TensorBatch;
-pub use apo::{ApoParams, HMax};
+pub use apo::{ApoParams, HMax, PenaltyUnits, Switch};
 pub use vmpo::{Multipliers, VmpoParams};
 
 /// Which objective an update maximizes.
@@ -67,8 +67,8 @@ pub struct ObjectiveTerms<B: Backend> {
     pub variance_mean: Option<Tensor<B, 1>>,
     /// The bias of the lower bound of `J` in `min_J_sq`'s switch (APO/PAPO with `k > 0`).
     pub bias: Option<Tensor<B, 1>>,
-    /// 1 when `min_J_sq`'s switch is on (`mean_surr + mean(V) − bias ≥ 0`), else 0
-    /// (APO/PAPO with `k > 0`).
+    /// 1 when `min_J_sq`'s switch is on (the paper's: `mean_surr + mean(V) − bias ≥ 0`; see
+    /// [`Switch`] for the others), else 0 (APO/PAPO with `k > 0`).
     pub min_j_sq_on: Option<Tensor<B, 1>>,
 }
 
@@ -152,6 +152,18 @@ impl Objective {
         batch: &TensorBatch<B>,
     ) -> ObjectiveTerms<B> {
         let comm = &batch.comm;
+        // the penalty's reward-valued inputs, in the units `params.units` asks for (reward
+        // units: the batch's own tensors, so the paper's numbers are untouched)
+        let (delta, value) = match params.units {
+            PenaltyUnits::Reward => (batch.delta.clone(), batch.value.clone()),
+            PenaltyUnits::Advantage => {
+                let scale = 1.0 / batch.adv_scale;
+                (
+                    batch.delta.clone().mul_scalar(scale),
+                    batch.value.clone().mul_scalar(scale),
+                )
+            }
+        };
         let ratio = apo::ratio(logp.clone(), batch.logp_old.clone());
         let mean_surr = match clip {
             None => apo::mean_surr(comm, ratio.clone(), batch.adv.clone()),
@@ -164,15 +176,8 @@ impl Objective {
             comm.mean(dist.kl_from(&batch.dist_old))
         });
         let mv = match clip {
-            None => apo::mean_variance(comm, ratio, batch.delta.clone(), h, params.omega1),
-            Some(clip) => papo::clipped_mean_variance(
-                comm,
-                ratio,
-                batch.delta.clone(),
-                h,
-                params.omega1,
-                clip,
-            ),
+            None => apo::mean_variance(comm, ratio, delta, h, params.omega1),
+            Some(clip) => papo::clipped_mean_variance(comm, ratio, delta, h, params.omega1, clip),
         };
         let bias = apo::lower_bound_bias(
             comm,
@@ -181,15 +186,21 @@ impl Objective {
             batch.adv.clone(),
             params.gamma,
         );
-        let mean_value = comm.mean(batch.value.clone());
-        let on = apo::min_j_sq_off(mean_surr.clone(), mean_value.clone(), bias.clone())
-            .bool_not()
-            .float();
-        let min_j_sq = apo::min_j_sq(mean_surr.clone(), mean_value, bias.clone());
+        let mean_value = comm.mean(value.clone());
+        let off = apo::switch_off(
+            comm,
+            params.switch,
+            mean_surr.clone(),
+            mean_value.clone(),
+            bias.clone(),
+            batch.adv.clone(),
+        );
+        let on = off.clone().bool_not().float();
+        let min_j_sq = apo::min_j_sq(mean_surr.clone(), mean_value, off);
         let vm = apo::variance_mean(
             comm,
             batch.adv.clone(),
-            batch.value.clone(),
+            value,
             min_j_sq,
             params.omega1,
             params.gamma,

@@ -4,7 +4,9 @@
 
 use apo_core::collective::Comm;
 use apo_core::hvp::{gradient, hessian_vector_product, Autodiff2};
-use apo_core::objective::{apo, papo, ApoParams, HMax, Objective, VmpoParams};
+use apo_core::objective::{
+    apo, papo, ApoParams, HMax, Objective, PenaltyUnits, Switch, VmpoParams,
+};
 use apo_core::policy::{MlpPolicyConfig, Policy, PolicyFamily};
 use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
@@ -91,6 +93,8 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
         omega1,
         h_max: HMax::Fixed(omega2),
         gamma,
+        units: Default::default(),
+        switch: Default::default(),
     };
     let hm = host(apo::h_max(
         &Comm::default(),
@@ -135,7 +139,8 @@ pub fn check_terms<B: Backend>(device: &B::Device, tol: f64) {
         (-0.3, -2.0, 0.0, 0.0),                       // off
     ];
     for (ms, mv, bias, expected) in cases {
-        let got = scalar(apo::min_j_sq(one(ms), one(mv), one(bias)));
+        let off = apo::min_j_sq_off(one(ms), one(mv), one(bias));
+        let got = scalar(apo::min_j_sq(one(ms), one(mv), off));
         assert_close(
             &format!("min_j_sq(ms {ms}, mean V {mv}, bias {bias})"),
             got,
@@ -261,18 +266,24 @@ pub fn objective_cases() -> Vec<(&'static str, Objective, f64, Option<bool>)> {
         omega1: 0.005,
         h_max: HMax::Fixed(0.005),
         gamma: 0.99,
+        units: Default::default(),
+        switch: Default::default(),
     };
     let big = ApoParams {
         k: 2.0,
         omega1: 0.3,
         h_max: HMax::Fixed(0.7),
         gamma: 0.5,
+        units: Default::default(),
+        switch: Default::default(),
     };
     let est = ApoParams {
         k: 3.0,
         omega1: 0.01,
         h_max: HMax::Estimated,
         gamma: 0.9,
+        units: Default::default(),
+        switch: Default::default(),
     };
     vec![
         ("trpo", Objective::Trpo, 0.0, None),
@@ -364,6 +375,67 @@ pub fn objective_cases() -> Vec<(&'static str, Objective, f64, Option<bool>)> {
             0.0,
             Some(false),
         ),
+        // the variants (docs/algorithms.md, "Variants that keep the step"); the batch's
+        // adv_scale is 2.5 (gradient_point), so the scale-free penalty differs from the paper's
+        (
+            "apo scale-free, γ 0.5",
+            Objective::Apo(ApoParams {
+                units: PenaltyUnits::Advantage,
+                ..big
+            }),
+            5.0,
+            None,
+        ),
+        (
+            "apo switch held (on)",
+            Objective::Apo(ApoParams {
+                switch: Switch::Held,
+                ..big
+            }),
+            5.0,
+            None,
+        ),
+        (
+            "apo switch held (off)",
+            Objective::Apo(ApoParams {
+                switch: Switch::Held,
+                ..big
+            }),
+            -5.0,
+            None,
+        ),
+        (
+            "apo switch off",
+            Objective::Apo(ApoParams {
+                switch: Switch::Off,
+                ..big
+            }),
+            5.0,
+            None,
+        ),
+        (
+            "apo scale-free, switch off, paper params",
+            Objective::Apo(ApoParams {
+                units: PenaltyUnits::Advantage,
+                switch: Switch::Off,
+                ..paper
+            }),
+            5.0,
+            None,
+        ),
+        (
+            "papo scale-free, switch off",
+            Objective::Papo {
+                params: ApoParams {
+                    units: PenaltyUnits::Advantage,
+                    switch: Switch::Off,
+                    ..big
+                },
+                clip: 0.2,
+            },
+            5.0,
+            None,
+        ),
     ]
 }
 
@@ -384,7 +456,9 @@ pub fn gradient_point(
 ) -> (Vec<f64>, Vec<f64>, RefBatch) {
     let mut rng = Rng::new(seed);
     let theta_old = random_theta(cfg, &mut rng);
-    let batch = sample_batch(cfg, &theta_old, 24, value_mean, &mut rng);
+    let mut batch = sample_batch(cfg, &theta_old, 24, value_mean, &mut rng);
+    // σ_A of the raw advantages: only the scale-free penalty reads it
+    batch.adv_scale = 2.5;
     let theta: Vec<f64> = theta_old.iter().map(|t| t + 0.06 * rng.normal()).collect();
     (theta_old, theta, batch)
 }
@@ -622,6 +696,8 @@ pub fn hvp_cases() -> Vec<HvpCase> {
         omega1: 0.3,
         h_max: HMax::Fixed(0.7),
         gamma: 0.5,
+        units: Default::default(),
+        switch: Default::default(),
     });
     let mut cases = Vec::new();
     for (i, (pname, cfg)) in policy_cases().into_iter().enumerate() {
@@ -722,6 +798,7 @@ pub fn check_at_theta_j<B: Backend>(device: &B::Device, tol: f64) {
         delta: vec![1.0, 2.0, -1.0, 0.5],
         adv: vec![1.0, -2.0, 3.0, 0.5],
         ret: vec![0.0; 4],
+        adv_scale: 1.0,
     };
     let on = batch([2.0, 1.0, 0.0, 1.0]);
     let off = batch([-3.0, -2.0, -4.0, -3.0]);
@@ -730,6 +807,8 @@ pub fn check_at_theta_j<B: Backend>(device: &B::Device, tol: f64) {
         omega1: 0.5,
         h_max: HMax::Fixed(0.25),
         gamma: 0.5,
+        units: Default::default(),
+        switch: Default::default(),
     };
     let est = ApoParams {
         h_max: HMax::Estimated,

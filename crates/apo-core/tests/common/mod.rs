@@ -18,7 +18,7 @@ pub mod fisher;
 use std::sync::OnceLock;
 
 use apo_core::distribution::DistParams;
-use apo_core::objective::{HMax, Objective};
+use apo_core::objective::{HMax, Objective, PenaltyUnits, Switch};
 use apo_core::policy::{ActionKind, MlpPolicyConfig};
 use apo_core::tensor_batch::TensorBatch;
 use burn::backend::ndarray::NdArrayDevice;
@@ -552,6 +552,8 @@ pub struct RefBatch {
     pub delta: Vec<f64>,
     pub adv: Vec<f64>,
     pub ret: Vec<f64>,
+    /// σ_A, the scale the raw advantages were divided by (the scale-free penalty's unit).
+    pub adv_scale: f64,
 }
 
 impl RefBatch {
@@ -569,6 +571,7 @@ impl RefBatch {
             delta: t1(&self.delta, device),
             adv: t1(&self.adv, device),
             ret: t1(&self.ret, device),
+            adv_scale: self.adv_scale,
             comm: apo_core::Comm::default(),
         }
     }
@@ -632,6 +635,7 @@ pub fn sample_batch(
         delta: (0..n).map(|_| rng.normal()).collect(),
         adv: (0..n).map(|_| rng.normal()).collect(),
         ret: (0..n).map(|_| rng.normal()).collect(),
+        adv_scale: 1.0,
     }
 }
 
@@ -747,9 +751,14 @@ pub fn ref_terms_dist(obj: &Objective, dist: &RefDist, b: &RefBatch) -> RefTerms
                     }
                 })
                 .collect();
-            let t = |r: f64, i: usize| {
-                (r - 1.0) * b.delta[i] * b.delta[i] + 2.0 * r * b.delta[i] * h[i]
+            // the penalty's units: reward (the batch's own numbers) or σ_A
+            let unit = match p.units {
+                PenaltyUnits::Reward => 1.0,
+                PenaltyUnits::Advantage => b.adv_scale,
             };
+            let delta: Vec<f64> = b.delta.iter().map(|d| d / unit).collect();
+            let value: Vec<f64> = b.value.iter().map(|v| v / unit).collect();
+            let t = |r: f64, i: usize| (r - 1.0) * delta[i] * delta[i] + 2.0 * r * delta[i] * h[i];
             let mut mv_sum = 0.0;
             for i in 0..n {
                 match clip {
@@ -772,16 +781,18 @@ pub fn ref_terms_dist(obj: &Objective, dist: &RefDist, b: &RefBatch) -> RefTerms
             let max_adv = b.adv.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             let mean_dlogp = mean(&(0..n).map(|i| b.logp_old[i] - logp[i]).collect::<Vec<_>>());
             let bias = 4.0 * g * mean_dlogp.abs() * max_adv / (1.0 - g).powi(2);
-            let mean_v = mean(&b.value);
+            let mean_v = mean(&value);
             let margin = ms + mean_v - bias;
-            let min_j_sq = if margin < 0.0 {
-                0.0
-            } else {
-                ms * ms + 2.0 * mean_v * ms
+            let on = match p.switch {
+                Switch::Paper => margin >= 0.0,
+                // the paper's condition at θ_j: ratio 1 (mean_surr = mean(adv)) and bias 0
+                Switch::Held => mean(&b.adv) + mean_v >= 0.0,
+                Switch::Off => false,
             };
+            let min_j_sq = if on { ms * ms + 2.0 * mean_v * ms } else { 0.0 };
             let spread = mean(
                 &(0..n)
-                    .map(|i| b.adv[i].abs().powi(2) + 2.0 * b.adv[i].abs() * b.value[i])
+                    .map(|i| b.adv[i].abs().powi(2) + 2.0 * b.adv[i].abs() * value[i])
                     .collect::<Vec<_>>(),
             );
             let vm = p.omega1 * (1.0 - g * g) / p.k * spread - min_j_sq;

@@ -178,6 +178,7 @@ fn vmpo_batch() -> (RefDist, RefBatch) {
         delta: vec![0.0; 6],
         adv: vec![1.5, -0.7, 0.2, 2.4, -1.1, 0.9],
         ret: vec![0.0; 6],
+        adv_scale: 1.0,
     };
     let new = RefDist::Gaussian {
         mean: vec![

@@ -265,6 +265,8 @@ fn objectives() -> [(&'static str, Objective); 2] {
                 omega1: 0.05,
                 h_max: HMax::Fixed(0.05),
                 gamma: 0.9,
+                units: Default::default(),
+                switch: Default::default(),
             }),
         ),
     ]
@@ -479,6 +481,8 @@ fn trust_region_step_on_host_kernels_matches_burns() {
         omega1: 0.05,
         h_max: HMax::Fixed(0.05),
         gamma: 0.9,
+        units: Default::default(),
+        switch: Default::default(),
     });
     for c in cases() {
         let tb = c.batch.to_tensors::<F64>(&device);

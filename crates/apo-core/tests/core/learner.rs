@@ -97,6 +97,7 @@ fn to_ref(batch: &Batch, cfg: &MlpPolicyConfig) -> RefBatch {
         delta: one(&batch.delta),
         adv: one(&batch.adv),
         ret: one(&batch.ret),
+        adv_scale: batch.adv_scale,
     }
 }
 

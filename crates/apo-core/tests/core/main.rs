@@ -15,3 +15,4 @@ mod learner;
 mod objectives;
 mod proximal;
 mod trust_region;
+mod variants;

@@ -75,6 +75,8 @@ fn apo_with_k_zero_equals_trpo_and_papo_equals_ppo() {
         omega1: 0.3,
         h_max: HMax::Fixed(0.7),
         gamma: 0.99,
+        units: Default::default(),
+        switch: Default::default(),
     };
     let pairs = [
         (Objective::Apo(apo0), Objective::Trpo),
@@ -133,6 +135,8 @@ fn apo_gradient_tends_to_trpo_as_k_goes_to_zero() {
                 omega1: 0.3,
                 h_max: HMax::Fixed(0.7),
                 gamma: 0.5,
+                units: Default::default(),
+                switch: Default::default(),
             });
             let (_, g) = value_and_grad(&cfg, &obj, &theta, &batch);
             // the distance is k·‖∇mv + ∇vm‖ / ‖∇mean_surr‖: linear in k
@@ -165,6 +169,8 @@ fn at_theta_j_on_an_mlp_policy() {
                 omega1: 0.3,
                 h_max: HMax::Fixed(0.7),
                 gamma: 0.5,
+                units: Default::default(),
+                switch: Default::default(),
             };
             let policy = common_policy(&cfg, &theta_old, &device);
             let tb = batch.to_tensors::<F64>(&device);

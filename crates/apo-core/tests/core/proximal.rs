@@ -106,6 +106,8 @@ fn ppo_update_increases_the_clipped_objective() {
                     omega1: 0.005,
                     h_max: HMax::Fixed(0.005),
                     gamma: 0.99,
+                    units: Default::default(),
+                    switch: Default::default(),
                 },
                 clip: 0.2,
             },

@@ -212,6 +212,7 @@ fn linear_batch(
         delta: (0..n).map(|_| rng.normal()).collect(),
         adv: (0..n).map(|_| 0.3 + rng.normal()).collect(),
         ret: vec![0.0; n],
+        adv_scale: 1.0,
     }
 }
 
@@ -315,6 +316,8 @@ fn trust_region_step_equals_the_closed_form_natural_gradient_step() {
         omega1: 0.3,
         h_max: HMax::Fixed(0.7),
         gamma: 0.5,
+        units: Default::default(),
+        switch: Default::default(),
     };
     let cases = [
         ("trpo", Objective::Trpo, 0.0),
@@ -537,6 +540,8 @@ fn line_search_never_breaks_the_kl_bound() {
                 omega1: 0.005,
                 h_max: HMax::Fixed(0.005),
                 gamma: 0.99,
+                units: Default::default(),
+                switch: Default::default(),
             }),
         ),
         (
@@ -546,6 +551,8 @@ fn line_search_never_breaks_the_kl_bound() {
                 omega1: 0.05,
                 h_max: HMax::Fixed(0.5),
                 gamma: 0.9,
+                units: Default::default(),
+                switch: Default::default(),
             }),
         ),
         (
@@ -555,6 +562,8 @@ fn line_search_never_breaks_the_kl_bound() {
                 omega1: 0.01,
                 h_max: HMax::Estimated,
                 gamma: 0.95,
+                units: Default::default(),
+                switch: Default::default(),
             }),
         ),
     ];
@@ -603,6 +612,8 @@ fn line_search_keeps_theta_when_no_try_is_acceptable() {
         omega1: 0.005,
         h_max: HMax::Fixed(0.005),
         gamma: 0.99,
+        units: Default::default(),
+        switch: Default::default(),
     });
     let cfg = gaussian_cfg(4, &[8, 8], 3);
     let mut rng = Rng::new(77);
