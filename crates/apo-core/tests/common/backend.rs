@@ -414,13 +414,13 @@ pub fn objective_cases() -> Vec<(&'static str, Objective, f64, Option<bool>)> {
             None,
         ),
         (
-            "apo scale-free, switch off, paper params",
+            "apo scale-free, switch off",
             Objective::Apo(ApoParams {
                 units: PenaltyUnits::Advantage,
                 switch: Switch::Off,
-                ..paper
+                ..big
             }),
-            5.0,
+            -5.0,
             None,
         ),
         (

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# The report of the variants' ablation (docs/results/variants.md): every cell's runs copied under
+# names that tell the cells apart (<env>-<algo>-<cell>-s<seed>; `apo report` groups runs by
+# name), the GUARD campaign's Goal_Point TRPO runs beside them, then `apo report`.
+#   bash scripts/variants-report.sh [ABLATION] [OUT]   (defaults results/variants/ablation, /tmp/variants-report)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+src=${1:-results/variants/ablation}
+out=${2:-/tmp/variants-report}
+apo=${APO:-./target/release/apo}
+runs="$out/runs"
+rm -rf "$runs"
+mkdir -p "$runs"
+for cell in "$src"/*/*/; do
+  name=$(basename "$cell")
+  for run in "$cell"*-s[0-9]*/; do
+    [ -f "$run/progress.csv" ] || continue
+    base=$(basename "$run")
+    stem=${base%-s*}
+    [ "$name" = trpo ] && dest="$runs/$base" || dest="$runs/$stem-$name-${base##*-}"
+    mkdir -p "$dest"
+    cp "$run/config.toml" "$run/progress.csv" "$dest/"
+  done
+done
+for run in results/guard-campaign/eval/Goal_Point/baselines/Goal_Point-trpo-s*/; do
+  dest="$runs/$(basename "$run")"
+  mkdir -p "$dest"
+  cp "$run/config.toml" "$run/progress.csv" "$dest/"
+done
+"$apo" report "$runs" --last "${LAST:-10}" --out "$out/report"
