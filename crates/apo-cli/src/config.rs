@@ -808,6 +808,33 @@ mod tests {
     }
 
     #[test]
+    fn robust_preset_changes_apo_and_papo_only() {
+        use apo_core::objective::{HMax, Objective, PenaltyUnits, Switch};
+        let build = |algo, preset| {
+            RunConfig::build_with_preset(algo, "Hopper-v4", preset, None, &[]).expect("valid")
+        };
+        for algo in [Algorithm::Apo, Algorithm::Papo] {
+            let params = match build(algo, Some(Preset::Robust)).train.algo.objective() {
+                Objective::Apo(p) | Objective::Papo { params: p, .. } => p,
+                other => panic!("{algo}: {other:?}"),
+            };
+            assert_eq!(params.units, PenaltyUnits::Advantage, "{algo}");
+            assert_eq!(params.switch, Switch::Off, "{algo}");
+            assert_eq!(params.omega1, 0.01, "{algo}");
+            assert_eq!(params.h_max, HMax::Fixed(0.005), "{algo}");
+            // the rest is the defaults: k and γ as the paper's
+            assert_eq!((params.k, params.gamma), (7.0, 0.99), "{algo}");
+        }
+        for algo in [Algorithm::Trpo, Algorithm::Ppo, Algorithm::A2c] {
+            assert_eq!(
+                build(algo, Some(Preset::Robust)),
+                build(algo, None),
+                "{algo}"
+            );
+        }
+    }
+
+    #[test]
     fn sets_override_defaults_and_unknown_keys_are_named() {
         let sets = vec![
             "algo.gamma=0.95".to_string(),
