@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The ablation of APO's variants (docs/results/variants.md): the paper's APO, each variant alone,
-# the recommended combination (--preset robust) and TRPO, on Hopper-v4 (EPOCHS_HOPPER x STEPS,
+# the recommended combination (--preset robust) and TRPO, and PAPO's side of it (the paper's PAPO,
+# PAPO with --preset robust, PPO), on Hopper-v4 (EPOCHS_HOPPER x STEPS,
 # default 50 x 10 000 = 0.5 M steps, a reduced budget) and Goal_Point (the GUARD campaign's budget,
-# 100 x 10 000 = 1 M), seeds 0..4. Goal_Point's TRPO runs are the campaign's
-# (results/guard-campaign/eval/Goal_Point/baselines), run with the same settings.
+# 100 x 10 000 = 1 M), seeds 0..4. On Goal_Point the TRPO, PPO and paper-PAPO runs are the
+# campaign's (results/guard-campaign/eval/Goal_Point), run with the same settings.
 # Every cell is an `apo sweep`: resumable, finished runs are skipped. Runs at nice 19.
 #   bash scripts/variants-ablation.sh [OUT]   (default results/variants/ablation; JOBS=2)
 # Then: apo report OUT/*/* --last 10 --out OUT/report
@@ -16,7 +17,7 @@ apo=${APO:-./target/release/apo}
 [ -x "$apo" ] || { echo "error: $apo is missing: cargo build --release -p apo-cli" >&2; exit 1; }
 # the robust preset's omega (crates/apo-cli/src/config.rs), for the scale-free penalty alone
 robust_omega=(--set algo.omega1=0.01 --set algo.omega2=0.005)
-cells=${CELLS:-paper units=advantage switch=held switch=off acceptance=ratio robust trpo}
+cells=${CELLS:-paper units=advantage switch=held switch=off acceptance=ratio robust trpo papo papo-robust ppo}
 for env in ${ENVS:-Hopper-v4 Goal_Point}; do
   case $env in Hopper-v4) epochs=${EPOCHS_HOPPER:-50} ;; *) epochs=${EPOCHS_GUARD:-100} ;; esac
   sweep() { nice -n 19 "$apo" sweep --env "$env" --seeds 0..5 --epochs "$epochs" --steps-per-epoch "$steps" \
@@ -28,7 +29,8 @@ for env in ${ENVS:-Hopper-v4 Goal_Point}; do
       switch=*|acceptance=*) key=${cell%%=*}; [ "$key" = acceptance ] && key=trust_region.acceptance
         sweep --algo apo --set "algo.$key=${cell#*=}" --out "$out/$env/$cell" ;;
       robust) sweep --algo apo --preset robust --out "$out/$env/$cell" ;;
-      trpo) [ "$env" = Goal_Point ] || sweep --algo trpo --out "$out/$env/$cell" ;;
+      papo-robust) sweep --algo papo --preset robust --out "$out/$env/$cell" ;;
+      trpo|papo|ppo) [ "$env" = Goal_Point ] || sweep --algo "$cell" --out "$out/$env/$cell" ;;
       *) echo "error: unknown cell $cell" >&2; exit 2 ;;
     esac
   done

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # The report of the variants' ablation (docs/results/variants.md): every cell's runs copied under
 # names that tell the cells apart (<env>-<algo>-<cell>-s<seed>; `apo report` groups runs by
-# name), the GUARD campaign's Goal_Point TRPO runs beside them, then `apo report`.
+# name; the paper's algorithms keep their names, PAPO's robust cell is <env>-papo-robust), the
+# GUARD campaign's Goal_Point TRPO, PPO and PAPO runs beside them, then `apo report`.
 #   bash scripts/variants-report.sh [ABLATION] [OUT]   (defaults results/variants/ablation, /tmp/variants-report)
+# The held-out comparison's folder (results/variants/heldout) works too: its baselines keep their names.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 src=${1:-results/variants/ablation}
@@ -17,12 +19,16 @@ for cell in "$src"/*/*/; do
     [ -f "$run/progress.csv" ] || continue
     base=$(basename "$run")
     stem=${base%-s*}
-    [ "$name" = trpo ] && dest="$runs/$base" || dest="$runs/$stem-$name-${base##*-}"
+    case $name in
+      trpo|papo|ppo|baselines) dest="$runs/$base" ;;
+      *) dest="$runs/$stem-${name#papo-}-${base##*-}" ;;
+    esac
     mkdir -p "$dest"
     cp "$run/config.toml" "$run/progress.csv" "$dest/"
   done
 done
-for run in results/guard-campaign/eval/Goal_Point/baselines/Goal_Point-trpo-s*/; do
+for run in results/guard-campaign/eval/Goal_Point/{baselines,papo}/Goal_Point-{trpo,ppo,papo}-s*/; do
+  [ -d "$src/Goal_Point" ] && [ -f "$run/progress.csv" ] || continue
   dest="$runs/$(basename "$run")"
   mkdir -p "$dest"
   cp "$run/config.toml" "$run/progress.csv" "$dest/"
