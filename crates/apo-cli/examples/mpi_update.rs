@@ -64,7 +64,7 @@ fn main() -> anyhow::Result<()> {
     let share = rollout.batch.rows(rank * n / size..(rank + 1) * n / size);
     let before = learner.policy_params();
     learner.set_comm(comm);
-    let report = learner.update(&share, &mut StdRng::seed_from_u64(5));
+    let report = learner.update(&share, &mut StdRng::seed_from_u64(5))?;
 
     let json = serde_json::json!({
         "rank": rank,

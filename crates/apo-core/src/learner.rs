@@ -20,7 +20,7 @@ use crate::collective::Comm;
 use crate::flat::{flatten, from_host, to_host, unflatten};
 use crate::kernels::Kernels;
 use crate::objective::{Multipliers, Objective};
-use crate::policy::{ActionKind, Policy, PolicyFamily};
+use crate::policy::{check_distribution, ActionKind, Policy, PolicyError, PolicyFamily};
 use crate::proximal::{proximal_update, value_update, ProximalReport};
 use crate::tensor_batch::TensorBatch;
 use crate::trust_region::{trust_region_step, LineSearchOutcome, Rejections};
@@ -261,7 +261,15 @@ where
     /// One epoch's update of the policy (by the configured algorithm) and of the value
     /// network, on `batch` collected by the current policy (with several ranks, this rank's
     /// part of the epoch's batch); `rng` shuffles minibatches.
-    pub fn update(&mut self, batch: &Batch, rng: &mut impl Rng) -> UpdateReport {
+    ///
+    /// # Errors
+    /// [`PolicyError`] when the policy's distributions on the batch's states do not fit its
+    /// actions (family, action width or batch size); nothing is updated then.
+    pub fn update(
+        &mut self,
+        batch: &Batch,
+        rng: &mut impl Rng,
+    ) -> Result<UpdateReport, PolicyError> {
         let start = std::time::Instant::now();
         let objective = self.objective();
         let tb =
@@ -272,6 +280,7 @@ where
             from_host::<B>(&theta, &self.device),
         );
         let dist = before.distribution(tb.obs.clone());
+        check_distribution::<B, F::Policy<B>>(&dist, batch.len, self.action)?;
         let entropy = to_host(self.comm.mean(dist.entropy()))[0];
         let terms = objective.evaluate(&dist, &tb);
         let scalar = |t: Option<burn::tensor::Tensor<B, 1>>| t.map(|t| to_host(t)[0]);
@@ -347,7 +356,7 @@ where
         // the switch's diagnostics exist for APO and PAPO only
         let terms_after = matches!(objective, Objective::Apo(_) | Objective::Papo { .. })
             .then(|| objective.evaluate(&after, &tb));
-        UpdateReport {
+        Ok(UpdateReport {
             loss_pi: -to_host(terms.objective)[0],
             mean_surr: to_host(terms.mean_surr)[0],
             mean_variance: scalar(terms.mean_variance),
@@ -365,6 +374,6 @@ where
             multipliers: self.multipliers,
             policy_update_s,
             value_update_s,
-        }
+        })
     }
 }

@@ -7,9 +7,9 @@
 //! * [`buffer`] — the rollout buffer with one-step advantages, GAE and rewards-to-go;
 //! * [`objective`] — every objective, term by term, with the paper's names;
 //! * [`trust_region`] — conjugate gradient on Fisher-vector products, step scaling, line search;
-//! * [`fisher`] — the trust region's Fisher-vector product `Jᵀ M J v / N` by a forward-mode JVP
-//!   and one backward pass (double-backward Hessian-vector products, [`hvp`], for policies
-//!   without a JVP);
+//! * [`fisher`] — the trust region's Fisher-vector product `Jᵀ M J v / N` by a JVP (the
+//!   policy's forward-mode one, or a finite difference) and one backward pass: first
+//!   derivatives only, so `burn::nn` policies work;
 //! * [`proximal`] — Adam with early stopping (KL or ratio deviation), and the value update;
 //! * [`kernels`] — where the Fisher-vector products and the value fit run: Burn's graph, or
 //!   fused host kernels;
@@ -55,7 +55,7 @@ pub use metrics::EpisodeStats;
 pub use objective::{
     ApoParams, HMax, Multipliers, Objective, ObjectiveTerms, PenaltyUnits, Switch, VmpoParams,
 };
-pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
+pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyError, PolicyFamily};
 pub use proximal::{ProximalConfig, ProximalReport, ProximalStep};
 pub use tensor_batch::TensorBatch;
 pub use trust_region::{

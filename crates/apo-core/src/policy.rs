@@ -40,9 +40,15 @@ use crate::mlp::Mlp;
 /// Everything an algorithm in this crate needs from a policy. The policy's float
 /// parameters (as visited by [`Module::visit`]) are the parameters θ that are optimized.
 pub trait Policy<B: Backend>: Module<B> {
-    /// `obs: [batch, observation_dim]` → the distribution of the action in each state.
-    /// The operations used must be twice differentiable for the trust-region algorithms
-    /// (all of Burn's elementwise float ops, `matmul`, `tanh`, `exp`, `log`, sums and means are).
+    /// `obs: [batch, observation_dim]` → the distribution of the action in each state:
+    /// [`DistParams::Gaussian`] with means and log-stds `[batch, action_dim]` for a box
+    /// action space, [`DistParams::Categorical`] with logits `[batch, n]` for `n` discrete
+    /// actions.
+    ///
+    /// Any Burn operation will do, `burn::nn` layers included (`Linear`, convolutions, norms,
+    /// embeddings): every algorithm needs only first derivatives — the trust-region step
+    /// takes its Fisher-vector products from [`Policy::distribution_jvp`] or, without one,
+    /// from a finite difference of this function ([`crate::fisher`]).
     fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B>;
 
     /// The Jacobian-vector product of [`Policy::distribution`] with respect to the
@@ -54,10 +60,10 @@ pub trait Policy<B: Backend>: Module<B> {
     /// of the log standard deviations `[batch, action_dim]` for a Gaussian, of the logits
     /// `[batch, n]` for a categorical.
     ///
-    /// It lets the trust-region step apply the Fisher matrix by first-order passes only
-    /// (see [`crate::fisher`]). The default, `None`, means "not available": the
-    /// trust-region step then uses the double-backward Hessian-vector product of the KL,
-    /// which needs nothing beyond [`Policy::distribution`].
+    /// Optional: it makes the trust-region step's Fisher-vector products exact and a little
+    /// cheaper (see [`crate::fisher`]). The default, `None`, means "not available": the
+    /// trust-region step then takes `J v` by a central finite difference of
+    /// [`Policy::distribution`] (two forward passes, relative error about 1e-4 in `f32`).
     fn distribution_jvp(&self, _obs: Tensor<B, 2>, _tangent: &Self) -> Option<DistParams<B>> {
         None
     }
@@ -77,6 +83,66 @@ pub struct HostForm {
     pub layers: Vec<(Vec<f32>, Vec<f32>)>,
     /// Number of log-std parameters after the network's (`None`: a categorical policy).
     pub log_std: Option<usize>,
+}
+
+/// A policy whose distributions do not fit the actions it is trained on (see
+/// [`Policy::distribution`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("policy `{policy}`: {problem}")]
+pub struct PolicyError {
+    /// The policy's type.
+    pub policy: String,
+    /// What is wrong, and what to change.
+    pub problem: String,
+}
+
+impl PolicyError {
+    /// The error of policy type `P`.
+    pub(crate) fn of<P: ?Sized>(problem: String) -> Self {
+        Self {
+            policy: std::any::type_name::<P>().to_string(),
+            problem,
+        }
+    }
+}
+
+/// `Ok` when `dist`, policy `P`'s output on `rows` states, is a batch of `rows`
+/// distributions of `action`'s family and width.
+pub(crate) fn check_distribution<B: Backend, P: ?Sized>(
+    dist: &DistParams<B>,
+    rows: usize,
+    action: ActionKind,
+) -> Result<(), PolicyError> {
+    let found = match dist {
+        DistParams::Gaussian { mean, log_std } if mean.dims() == log_std.dims() => {
+            let [r, dim] = mean.dims();
+            (r, ActionKind::Continuous { dim })
+        }
+        DistParams::Gaussian { mean, log_std } => {
+            return Err(PolicyError::of::<P>(format!(
+                "its Gaussian's means {:?} and log-stds {:?} differ in shape (both must be [batch, action_dim]; expand a state-independent log-std to the batch)",
+                mean.dims(),
+                log_std.dims()
+            )))
+        }
+        DistParams::Categorical { logits } => {
+            let [r, n] = logits.dims();
+            (r, ActionKind::Discrete { n })
+        }
+    };
+    let expected = (rows, action);
+    if found == expected {
+        return Ok(());
+    }
+    let describe = |(rows, action): (usize, ActionKind)| match action {
+        ActionKind::Continuous { dim } => format!("a Gaussian [{rows}, {dim}]"),
+        ActionKind::Discrete { n } => format!("a categorical [{rows}, {n}]"),
+    };
+    Err(PolicyError::of::<P>(format!(
+        "its distribution on {rows} states is {}, but the actions need {}",
+        describe(found),
+        describe(expected)
+    )))
 }
 
 /// A description of a policy that can build the same architecture on any backend.

@@ -2,8 +2,9 @@
 //!
 //! At θ_j, with `g = ∇ objective(θ_j)` and `F = ∇² mean KL(π_j ‖ π_θ)|θ_j` (plus
 //! `damping · I`), applied to vectors as `(1/N) Jᵀ M J v` by first-order passes
-//! ([`crate::fisher`]) when the policy has a JVP ([`Policy::distribution_jvp`]), else as
-//! Hessian-vector products by double backward ([`crate::hvp::hessian_vector_product`]):
+//! ([`crate::fisher`]: the policy's JVP, [`Policy::distribution_jvp`], or a finite difference
+//! of its distributions when it has none — no second derivative, so any policy whose forward
+//! pass is differentiable works, `burn::nn` layers included):
 //!
 //! 1. `x ≈ F⁻¹ g` by conjugate gradient;
 //! 2. the full step `Δ = sqrt(2δ / (xᵀFx + step_epsilon)) · x` — the maximizer of the linearized objective
@@ -24,7 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::fisher::FisherOperator;
 use crate::flat::{from_host, to_host, unflatten};
-use crate::hvp::{gradient, hessian_vector_product, Autodiff2};
+use crate::hvp::gradient;
 use crate::kernels::Kernels;
 use crate::objective::Objective;
 use crate::policy::{Policy, PolicyFamily};
@@ -348,15 +349,16 @@ where
     // θ_j is fixed during the whole solve: both operators are prepared once
     let fisher = FisherOperator::new(family, theta, batch.obs.clone(), &batch.dist_old)
         .with_kernels(kernels);
-    let batch2 = batch1.lift::<Autodiff2<B>>();
-    let template2 = family.init::<Autodiff2<B>>(&device);
+    // set when the policy's distributions are not of the batch's family (no Fisher product)
+    let mismatch = std::cell::Cell::new(false);
     let fvp = |v: &[f64]| -> Vec<f64> {
         let mut fv = match fisher.apply(v) {
             Some(fv) if comm.is_distributed() => fv.into_iter().map(|x| x * share).collect(),
             Some(fv) => fv,
-            None => hessian_vector_product::<B, _>(&template2, theta, v, &device, |p| {
-                comm.mean(p.distribution(batch2.obs.clone()).kl_from(&batch2.dist_old))
-            }),
+            None => {
+                mismatch.set(true);
+                vec![0.0; v.len()]
+            }
         };
         comm.sum(&mut fv);
         axpy(config.cg_damping, v, &mut fv);
@@ -376,7 +378,7 @@ where
         rejections,
     };
     let denominator = x_fx + config.step_epsilon;
-    if !(denominator > 0.0 && denominator.is_finite()) {
+    if mismatch.get() || !(denominator > 0.0 && denominator.is_finite()) {
         return no_step(
             vec![0.0; theta.len()],
             LineSearchOutcome::NoStep,

@@ -3,8 +3,12 @@
 //! [`EnvRng`] is ChaCha8 from `rand_chacha`, whose output stream is specified and portable:
 //! the same seed gives the same numbers on every platform and in every release of the crate,
 //! so a seeded episode is reproducible.
+//!
+//! An environment of your own needs nothing more: [`EnvRng`], [`reseed`] in its
+//! [`crate::Env::reset`], and the [`Rng`] trait re-exported here to draw from it
+//! (`rng.random_range(-1.0..1.0)`), without a direct `rand` dependency.
 
-use rand::SeedableRng;
+pub use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// The generator type an environment owns (portable ChaCha8).

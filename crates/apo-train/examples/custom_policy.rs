@@ -2,38 +2,38 @@
 //!
 //! The task is a one-step problem written here as an [`Env`]: observe `s ~ U(-1, 1)²`, act
 //! `a ∈ [-1, 1]²`, receive `r = −‖a − A s‖²` for a fixed matrix `A`, and the episode ends. The
-//! policy is a custom module — a linear Gaussian with a learned log-std — that implements
-//! [`Policy`]; its config implements [`PolicyFamily`]. [`BurnActor`] runs it in the rollout on
-//! Burn's NdArray backend, and [`Trainer`] does the rest. Implementing the optional
+//! policy is a custom module — a `burn::nn::Linear` layer for the means and a learned log-std —
+//! that implements [`Policy`]; its config implements [`PolicyFamily`]. [`BurnActor`] runs it in
+//! the rollout on Burn's NdArray backend, and [`Trainer`] does the rest. Any `burn::nn` layer
+//! works: the trust-region step needs first derivatives only. Implementing the optional
 //! [`Policy::distribution_jvp`] as well (forward-mode tangents of the distribution parameters)
-//! would let the trust-region step use the cheaper Fisher-vector product instead of
-//! double-backward Hessian-vector products.
+//! would replace the finite-difference Jacobian-vector product of its Fisher-vector products
+//! by an exact one.
 //!
 //! Run with `cargo run --release -p apo-train --example custom_policy -- [EPOCHS]`.
 
 use std::sync::atomic::AtomicBool;
 
 use apo_core::{AlgoConfig, Algorithm, DistParams, Policy, PolicyFamily};
+use apo_envs::rng::{reseed, EnvRng, Rng, SeedableRng};
 use apo_envs::{Action, Env, Space, Transition, VecEnv};
 use apo_train::{BurnActor, TrainConfig, Trainer};
 use burn::backend::NdArray;
 use burn::module::{Module, Param};
+use burn::nn::{Linear, LinearConfig};
 use burn::tensor::backend::Backend;
-use burn::tensor::{Distribution, Tensor};
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use burn::tensor::Tensor;
 
 /// `a ~ N(s·W + b, exp(log_std)²)`.
 #[derive(Module, Debug)]
 struct LinearGaussian<B: Backend> {
-    weight: Param<Tensor<B, 2>>,
-    bias: Param<Tensor<B, 1>>,
+    layer: Linear<B>,
     log_std: Param<Tensor<B, 1>>,
 }
 
 impl<B: Backend> Policy<B> for LinearGaussian<B> {
     fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
-        let mean = obs.matmul(self.weight.val()) + self.bias.val().unsqueeze_dim(0);
+        let mean = self.layer.forward(obs);
         let log_std = self.log_std.val().unsqueeze_dim::<2>(0).expand(mean.dims());
         DistParams::Gaussian { mean, log_std }
     }
@@ -51,12 +51,7 @@ impl PolicyFamily for LinearGaussianConfig {
 
     fn init<B: Backend>(&self, device: &B::Device) -> LinearGaussian<B> {
         LinearGaussian {
-            weight: Param::from_tensor(Tensor::random(
-                [self.obs, self.act],
-                Distribution::Normal(0.0, 0.1),
-                device,
-            )),
-            bias: Param::from_tensor(Tensor::zeros([self.act], device)),
+            layer: LinearConfig::new(self.obs, self.act).init(device),
             log_std: Param::from_tensor(Tensor::full([self.act], -0.5, device)),
         }
     }
@@ -68,7 +63,7 @@ const TARGET: [[f32; 2]; 2] = [[0.8, -0.5], [0.3, 0.9]];
 struct Match {
     space: Space,
     state: [f32; 2],
-    rng: StdRng,
+    rng: EnvRng,
 }
 
 impl Env for Match {
@@ -79,9 +74,7 @@ impl Env for Match {
         &self.space
     }
     fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
-        if let Some(seed) = seed {
-            self.rng = StdRng::seed_from_u64(seed);
-        }
+        reseed(&mut self.rng, seed);
         self.state = [
             self.rng.random_range(-1.0..1.0),
             self.rng.random_range(-1.0..1.0),
@@ -112,7 +105,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Box::new(Match {
                 space: Space::uniform_box(2, -1.0, 1.0),
                 state: [0.0; 2],
-                rng: StdRng::seed_from_u64(0),
+                rng: EnvRng::seed_from_u64(0),
             }) as Box<dyn Env>
         })
         .collect();

@@ -1,6 +1,6 @@
 //! Errors of the training loop.
 
-use apo_core::ConfigError;
+use apo_core::{ConfigError, PolicyError};
 use apo_envs::EnvError;
 
 /// Why training could not start or continue.
@@ -9,6 +9,9 @@ pub enum TrainError {
     /// A setting is out of range.
     #[error(transparent)]
     Config(#[from] ConfigError),
+    /// The policy's distributions do not fit the environment's actions.
+    #[error(transparent)]
+    Policy(#[from] PolicyError),
     /// The environments could not be made.
     #[error(transparent)]
     Env(#[from] EnvError),

@@ -345,7 +345,7 @@ where
             gather_episodes(&self.comm, &mut rollout);
         }
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
-        let update = self.learner.update(&rollout.batch, &mut rng);
+        let update = self.learner.update(&rollout.batch, &mut rng)?;
         if let Some(what) = non_finite(&update, &self.learner) {
             return Err(TrainError::NonFinite {
                 epoch: self.state.epoch + 1,

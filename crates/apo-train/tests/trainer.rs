@@ -262,3 +262,355 @@ fn evaluation_needs_a_registered_environment() {
         .expect("refused");
     assert!(error.to_string().contains("eval_episodes"), "{error}");
 }
+
+// ---------------------------------------------------------------------------------------
+// Policies built from `burn::nn` layers train with the trust-region algorithms
+// ---------------------------------------------------------------------------------------
+
+/// `burn::nn` layers are differentiable once but not twice: the trust-region step must take
+/// its Fisher-vector products by first-order passes (the finite-difference JVP of
+/// `apo_core::fisher`). Each policy below has no `distribution_jvp`.
+mod nn_policies {
+    use std::sync::atomic::AtomicBool;
+
+    use apo_core::{ActionKind, Algorithm, DistParams, Policy, PolicyFamily, PolicyStep};
+    use apo_envs::rng::{reseed, EnvRng, Rng, SeedableRng};
+    use apo_envs::{Action, Env, Space, Transition, VecEnv};
+    use apo_train::{BurnActor, ProgressRow, TrainConfig, Trainer};
+    use burn::backend::{Autodiff, NdArray, Wgpu};
+    use burn::module::{AutodiffModule, Module, Param};
+    use burn::nn::conv::{Conv1d, Conv1dConfig};
+    use burn::nn::{Embedding, EmbeddingConfig, LayerNorm, LayerNormConfig, Linear, LinearConfig};
+    use burn::tensor::backend::Backend;
+    use burn::tensor::Tensor;
+
+    /// A one-step task: observe `s ~ U(-1, 1)^4`, act `a ∈ R²`, reward `−‖a − A s‖²`.
+    struct Regress {
+        obs_space: Space,
+        action_space: Space,
+        state: [f32; 4],
+        rng: EnvRng,
+    }
+
+    impl Env for Regress {
+        fn observation_space(&self) -> &Space {
+            &self.obs_space
+        }
+        fn action_space(&self) -> &Space {
+            &self.action_space
+        }
+        fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
+            reseed(&mut self.rng, seed);
+            self.state = std::array::from_fn(|_| self.rng.random_range(-1.0..1.0));
+            obs.copy_from_slice(&self.state);
+        }
+        fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
+            let s = self.state;
+            let a = match action {
+                Action::Continuous(a) => [a[0], a[1]],
+                Action::Discrete(_) => [0.0; 2],
+            };
+            let target = [
+                0.8 * s[0] - 0.5 * s[1] + 0.3 * s[2],
+                0.3 * s[1] + 0.9 * s[3],
+            ];
+            let reward: f32 = a.iter().zip(target).map(|(a, t)| -(a - t).powi(2)).sum();
+            obs.copy_from_slice(&s);
+            Transition {
+                reward: f64::from(reward),
+                terminated: true,
+                ..Default::default()
+            }
+        }
+    }
+
+    /// A one-step task: observe a token `k ∈ {0, …, 3}` (as a float), reward 1 for action
+    /// `k mod 3` of 3.
+    struct Lookup {
+        obs_space: Space,
+        action_space: Space,
+        token: usize,
+        rng: EnvRng,
+    }
+
+    impl Env for Lookup {
+        fn observation_space(&self) -> &Space {
+            &self.obs_space
+        }
+        fn action_space(&self) -> &Space {
+            &self.action_space
+        }
+        fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
+            reseed(&mut self.rng, seed);
+            self.token = self.rng.random_range(0..4);
+            obs[0] = self.token as f32;
+        }
+        fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
+            let right = matches!(action, Action::Discrete(a) if a == self.token % 3);
+            obs[0] = self.token as f32;
+            Transition {
+                reward: if right { 1.0 } else { 0.0 },
+                terminated: true,
+                ..Default::default()
+            }
+        }
+    }
+
+    fn regress() -> VecEnv {
+        let envs = (0..4)
+            .map(|_| {
+                Box::new(Regress {
+                    obs_space: Space::uniform_box(4, -1.0, 1.0),
+                    action_space: Space::uniform_box(2, -2.0, 2.0),
+                    state: [0.0; 4],
+                    rng: EnvRng::seed_from_u64(0),
+                }) as Box<dyn Env>
+            })
+            .collect();
+        VecEnv::new(envs).expect("four environments")
+    }
+
+    fn lookup() -> VecEnv {
+        let envs = (0..4)
+            .map(|_| {
+                Box::new(Lookup {
+                    obs_space: Space::uniform_box(1, 0.0, 3.0),
+                    action_space: Space::Discrete { n: 3 },
+                    token: 0,
+                    rng: EnvRng::seed_from_u64(0),
+                }) as Box<dyn Env>
+            })
+            .collect();
+        VecEnv::new(envs).expect("four environments")
+    }
+
+    fn log_std<B: Backend>(dim: usize, device: &B::Device) -> Param<Tensor<B, 1>> {
+        Param::from_tensor(Tensor::full([dim], -0.5, device))
+    }
+
+    fn gaussian<B: Backend>(mean: Tensor<B, 2>, log_std: &Param<Tensor<B, 1>>) -> DistParams<B> {
+        let log_std = log_std.val().unsqueeze_dim::<2>(0).expand(mean.dims());
+        DistParams::Gaussian { mean, log_std }
+    }
+
+    /// Linear → tanh → Linear, Gaussian.
+    #[derive(Module, Debug)]
+    pub struct Mlp<B: Backend> {
+        hidden: Linear<B>,
+        out: Linear<B>,
+        log_std: Param<Tensor<B, 1>>,
+    }
+
+    impl<B: Backend> Policy<B> for Mlp<B> {
+        fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
+            let h = self.hidden.forward(obs).tanh();
+            gaussian(self.out.forward(h), &self.log_std)
+        }
+    }
+
+    /// Conv1d over the observation as a 1-channel signal → tanh → Linear, Gaussian.
+    #[derive(Module, Debug)]
+    pub struct Conv<B: Backend> {
+        conv: Conv1d<B>,
+        out: Linear<B>,
+        log_std: Param<Tensor<B, 1>>,
+    }
+
+    impl<B: Backend> Policy<B> for Conv<B> {
+        fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
+            let [n, _] = obs.dims();
+            let h = self.conv.forward(obs.unsqueeze_dim::<3>(1)).tanh();
+            let [_, channels, width] = h.dims();
+            gaussian(
+                self.out.forward(h.reshape([n, channels * width])),
+                &self.log_std,
+            )
+        }
+    }
+
+    /// Linear → LayerNorm → tanh → Linear, Gaussian.
+    #[derive(Module, Debug)]
+    pub struct Normed<B: Backend> {
+        hidden: Linear<B>,
+        norm: LayerNorm<B>,
+        out: Linear<B>,
+        log_std: Param<Tensor<B, 1>>,
+    }
+
+    impl<B: Backend> Policy<B> for Normed<B> {
+        fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
+            let h = self.norm.forward(self.hidden.forward(obs)).tanh();
+            gaussian(self.out.forward(h), &self.log_std)
+        }
+    }
+
+    /// The observed token's row of an embedding table as the logits: a categorical.
+    #[derive(Module, Debug)]
+    pub struct Table<B: Backend> {
+        table: Embedding<B>,
+    }
+
+    impl<B: Backend> Policy<B> for Table<B> {
+        fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
+            let [n, _] = obs.dims();
+            let logits = self.table.forward(obs.int());
+            let [_, _, actions] = logits.dims();
+            DistParams::Categorical {
+                logits: logits.reshape([n, actions]),
+            }
+        }
+    }
+
+    /// The four policies, each sized by the environment.
+    #[derive(Debug, Clone, Copy)]
+    pub struct Sizes {
+        obs: usize,
+        act: usize,
+    }
+
+    macro_rules! family {
+        ($family:ident, $policy:ident, |$s:ident, $device:ident| $init:expr) => {
+            #[derive(Debug, Clone, Copy)]
+            pub struct $family(Sizes);
+            impl PolicyFamily for $family {
+                type Policy<B: Backend> = $policy<B>;
+                fn init<B: Backend>(&self, $device: &B::Device) -> $policy<B> {
+                    let $s = self.0;
+                    $init
+                }
+            }
+        };
+    }
+
+    family!(MlpFamily, Mlp, |s, device| Mlp {
+        hidden: LinearConfig::new(s.obs, 16).init(device),
+        out: LinearConfig::new(16, s.act).init(device),
+        log_std: log_std(s.act, device),
+    });
+    family!(ConvFamily, Conv, |s, device| Conv {
+        conv: Conv1dConfig::new(1, 3, 2).init(device),
+        out: LinearConfig::new(3 * (s.obs - 1), s.act).init(device),
+        log_std: log_std(s.act, device),
+    });
+    family!(NormedFamily, Normed, |s, device| Normed {
+        hidden: LinearConfig::new(s.obs, 16).init(device),
+        norm: LayerNormConfig::new(16).init(device),
+        out: LinearConfig::new(16, s.act).init(device),
+        log_std: log_std(s.act, device),
+    });
+    family!(TableFamily, Table, |s, device| Table {
+        table: EmbeddingConfig::new(4, s.act).init(device),
+    });
+
+    /// `epochs` epochs of 256 steps of `algo` with the policy that `family` builds: every row,
+    /// and the trust region's radius δ.
+    fn train<B: Backend, F: PolicyFamily>(
+        algo: Algorithm,
+        epochs: usize,
+        envs: VecEnv,
+        device: &B::Device,
+        family: fn(Sizes) -> F,
+    ) -> (Vec<ProgressRow>, f64)
+    where
+        F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+    {
+        let mut config = TrainConfig::defaults(algo, "nn-policy");
+        config.epochs = epochs;
+        config.steps_per_epoch = 256;
+        config.num_envs = 4;
+        config.hidden = vec![8];
+        let PolicyStep::TrustRegion(region) = config.algo.settings().policy_step() else {
+            panic!("{algo:?} is not a trust-region algorithm");
+        };
+        let max_kl = region.max_kl;
+        let mut trainer = Trainer::<B, F, BurnActor<F>>::from_envs(
+            config,
+            envs,
+            device,
+            |_, obs, action: ActionKind| {
+                family(Sizes {
+                    obs,
+                    act: action.width(),
+                })
+            },
+        )
+        .expect("valid settings");
+        let stop = AtomicBool::new(false);
+        let mut rows = Vec::new();
+        while let Some(epoch) = trainer.epoch(&stop, &mut |_| {}).expect("a finite update") {
+            rows.push(epoch.row);
+        }
+        (rows, max_kl)
+    }
+
+    /// Every update accepted a step inside the trust region, and the mean return of the
+    /// last third of the epochs beats that of the first third.
+    fn check<B: Backend, F: PolicyFamily>(
+        name: &str,
+        epochs: usize,
+        envs: fn() -> VecEnv,
+        device: &B::Device,
+        family: fn(Sizes) -> F,
+    ) where
+        F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+    {
+        for algo in [Algorithm::Trpo, Algorithm::Apo] {
+            let (rows, delta) = train::<B, F>(algo, epochs, envs(), device, family);
+            let accepted = rows
+                .iter()
+                .filter(|r| {
+                    r.line_search
+                        .as_deref()
+                        .is_some_and(|l| l.starts_with("accepted"))
+                })
+                .count();
+            let mean = |rows: &[ProgressRow]| {
+                rows.iter()
+                    .map(|r| r.ep_ret_mean.unwrap_or(f64::NAN))
+                    .sum::<f64>()
+                    / rows.len() as f64
+            };
+            let third = rows.len() / 3;
+            let (first, last) = (mean(&rows[..third]), mean(&rows[rows.len() - third..]));
+            let max_kl = rows.iter().map(|r| r.kl).fold(0.0, f64::max);
+            eprintln!(
+                "{name}, {algo:?}: {accepted}/{} steps accepted, return {first:.3} -> {last:.3}, max KL {max_kl:.4}",
+                rows.len()
+            );
+            assert!(
+                accepted * 4 >= rows.len() * 3,
+                "{name}, {algo:?}: {accepted}/{} accepted",
+                rows.len()
+            );
+            assert!(
+                max_kl > 0.0 && max_kl <= delta,
+                "{name}, {algo:?}: max KL {max_kl} (δ {delta})"
+            );
+            assert!(last > first, "{name}, {algo:?}: return {first} -> {last}");
+        }
+    }
+
+    fn check_all<B: Backend>(epochs: usize, device: &B::Device) {
+        check::<B, _>("Linear", epochs, regress, device, MlpFamily);
+        check::<B, _>("Conv1d + Linear", epochs, regress, device, ConvFamily);
+        check::<B, _>("LayerNorm", epochs, regress, device, NormedFamily);
+        check::<B, _>(
+            "Embedding (categorical)",
+            epochs,
+            lookup,
+            device,
+            TableFamily,
+        );
+    }
+
+    #[test]
+    fn burn_nn_policies_train_with_trpo_and_apo_on_ndarray() {
+        check_all::<NdArray>(12, &Default::default());
+    }
+
+    /// Fewer epochs: each of wgpu's small kernels is a dispatch (slow on a software device).
+    #[test]
+    fn burn_nn_policies_train_with_trpo_and_apo_on_wgpu() {
+        check_all::<Wgpu>(6, &Default::default());
+    }
+}

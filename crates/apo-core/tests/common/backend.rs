@@ -659,6 +659,7 @@ impl HvpCase {
         hessian_vector_product::<B, _>(&template, &self.theta, &self.v, device, |p| {
             self.graph(p, &tb)
         })
+        .expect("the built-in MLP is twice differentiable")
     }
 
     /// Reference 1: central differences, in direction `v`, of the library's gradient on

@@ -10,8 +10,9 @@
 use apo_core::distribution::DistParams;
 use apo_core::fisher::FisherOperator;
 use apo_core::flat::{from_host, unflatten};
-use apo_core::policy::{MlpPolicyConfig, Policy, PolicyFamily};
+use apo_core::policy::{MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily};
 use apo_core::Kernels;
+use burn::module::Module;
 use burn::tensor::backend::Backend;
 use burn::tensor::Tensor;
 
@@ -231,18 +232,59 @@ pub fn matvec(a: &[Vec<f64>], x: &[f64]) -> Vec<f64> {
     a.iter().map(|row| dot(row, x)).collect()
 }
 
-/// The library's `F v` on backend `B` ([`cases`], each of their `vs`) against the explicit
-/// [`reference_fisher`]. Returns `(case, relative error)`.
+/// The built-in MLP policy without its JVP: the Fisher operator takes `J v` by a finite
+/// difference of the distributions.
+#[derive(Module, Debug)]
+pub struct NoJvp<B: Backend> {
+    pub inner: MlpPolicy<B>,
+}
+
+impl<B: Backend> Policy<B> for NoJvp<B> {
+    fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
+        self.inner.distribution(obs)
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct NoJvpFamily(pub MlpPolicyConfig);
+
+impl PolicyFamily for NoJvpFamily {
+    type Policy<B: Backend> = NoJvp<B>;
+
+    fn init<B: Backend>(&self, device: &B::Device) -> NoJvp<B> {
+        NoJvp {
+            inner: self.0.init(device),
+        }
+    }
+}
+
+/// How the library's `F v` gets `J v`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Jvp {
+    /// The MLP policy's forward-mode JVP.
+    Analytic,
+    /// The finite difference of a policy without one ([`NoJvp`]).
+    FiniteDifference,
+}
+
+/// The library's `F v` on backend `B` ([`cases`], each of their `vs`, `J v` by `jvp`) against
+/// the explicit [`reference_fisher`]. Returns `(case, relative error)`.
 pub fn check_fisher_vs_explicit<B: Backend>(
     device: &B::Device,
     kernels: Kernels,
+    jvp: Jvp,
     tol: f64,
 ) -> Vec<(String, f64)> {
     let mut errors = Vec::new();
     for c in cases() {
         let f = reference_fisher(&c);
-        let fvs = library_fisher::<B, _>(&c.cfg, &c, &c.vs, device, kernels)
-            .expect("the MLP policy has a JVP");
+        let fvs = match jvp {
+            Jvp::Analytic => library_fisher::<B, _>(&c.cfg, &c, &c.vs, device, kernels),
+            Jvp::FiniteDifference => {
+                library_fisher::<B, _>(&NoJvpFamily(c.cfg.clone()), &c, &c.vs, device, kernels)
+            }
+        }
+        .expect("the policy's distributions are of the batch's family");
         for (i, (v, fv)) in c.vs.iter().zip(&fvs).enumerate() {
             let what = format!("{}, v{i}: F v vs Jᵀ M J v / N", c.name);
             let err = assert_vec_rel(&what, fv, &matvec(&f, v), tol);

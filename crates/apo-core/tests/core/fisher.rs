@@ -11,9 +11,10 @@
 //!    differences of the reference policy (no library code), itself checked against the
 //!    mixed finite-difference Hessian of the reference KL; and the log-std block `2 I`
 //!    (hand-derived);
-//! 4. the trust-region step through the Fisher path and through the HVP path (the same
+//! 4. the trust-region step with the policy's JVP and with finite differences (the same
 //!    policy without a JVP) give the same step, and the step really uses the policy's JVP;
-//! 5. a policy without a JVP has no Fisher product, and its step is the HVP-based one.
+//! 5. a policy without a JVP gets the finite-difference product (against the explicit
+//!    Fisher, in f64 and f32), and its step is the one of the HVP of the KL.
 //!
 //! Tolerances: 1e-9 relative (1e-8 against finite differences) on NdArray<f64>, 1e-4 on wgpu
 //! (float32), as in `hvp.rs`.
@@ -39,6 +40,7 @@ use burn::tensor::Tensor;
 use common::backend::{print_errors, HvpCase, HvpFn};
 use common::fisher::{
     cases, check_fisher_vs_explicit, check_jvp, library_fisher, matvec, reference_fisher, Case,
+    Jvp, NoJvpFamily,
 };
 use common::*;
 
@@ -146,7 +148,8 @@ fn explicit_fisher_is_the_kl_hessian() {
 
 #[test]
 fn fisher_product_matches_explicit_fisher_ndarray_f64() {
-    let errors = check_fisher_vs_explicit::<F64>(&ndarray_f64(), Kernels::Backend, 1e-8);
+    let errors =
+        check_fisher_vs_explicit::<F64>(&ndarray_f64(), Kernels::Backend, Jvp::Analytic, 1e-8);
     print_errors(
         "F v relative error, NdArray<f64> vs explicit Jᵀ M J / N",
         &errors,
@@ -155,9 +158,36 @@ fn fisher_product_matches_explicit_fisher_ndarray_f64() {
 
 #[test]
 fn fisher_product_matches_explicit_fisher_wgpu() {
-    let errors = check_fisher_vs_explicit::<Wgpu>(&wgpu(), Kernels::Backend, 1e-4);
+    let errors = check_fisher_vs_explicit::<Wgpu>(&wgpu(), Kernels::Backend, Jvp::Analytic, 1e-4);
     print_errors(
         "F v relative error, wgpu (f32) vs explicit Jᵀ M J / N",
+        &errors,
+    );
+}
+
+/// Without a JVP, `J v` by a central finite difference of the distributions: ε_M^{2/3} ≈ 4e-11
+/// in f64, the reference's own finite-difference Jacobian (h = 1e-5) limiting at ~1e-9.
+#[test]
+fn finite_difference_fisher_matches_explicit_fisher_ndarray_f64() {
+    let errors = check_fisher_vs_explicit::<F64>(
+        &ndarray_f64(),
+        Kernels::Backend,
+        Jvp::FiniteDifference,
+        1e-8,
+    );
+    print_errors(
+        "F v relative error, J v by f64 finite differences, NdArray<f64> vs explicit Jᵀ M J / N",
+        &errors,
+    );
+}
+
+/// The same in f32 on wgpu: ε_M^{2/3} ≈ 2.4e-5.
+#[test]
+fn finite_difference_fisher_matches_explicit_fisher_wgpu() {
+    let errors =
+        check_fisher_vs_explicit::<Wgpu>(&wgpu(), Kernels::Backend, Jvp::FiniteDifference, 1e-3);
+    print_errors(
+        "F v relative error, J v by f32 finite differences, wgpu vs explicit Jᵀ M J / N",
         &errors,
     );
 }
@@ -191,31 +221,6 @@ fn fisher_of_the_log_std_is_two() {
 // ---------------------------------------------------------------------------------------
 // 4–5. The trust-region step, and policies without a JVP
 // ---------------------------------------------------------------------------------------
-
-/// The built-in MLP policy without its JVP: the trust region must fall back to the HVP.
-#[derive(Module, Debug)]
-struct NoJvp<B: Backend> {
-    inner: MlpPolicy<B>,
-}
-
-impl<B: Backend> Policy<B> for NoJvp<B> {
-    fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
-        self.inner.distribution(obs)
-    }
-}
-
-#[derive(Debug, Clone)]
-struct NoJvpFamily(MlpPolicyConfig);
-
-impl PolicyFamily for NoJvpFamily {
-    type Policy<B: Backend> = NoJvp<B>;
-
-    fn init<B: Backend>(&self, device: &B::Device) -> NoJvp<B> {
-        NoJvp {
-            inner: self.0.init(device),
-        }
-    }
-}
 
 /// The built-in MLP policy with its JVP doubled: the Fisher operator becomes `Jᵀ M (2 J) / N = 2 F`
 /// (the `Jᵀ` pass differentiates the distribution itself).
@@ -272,11 +277,13 @@ fn objectives() -> [(&'static str, Objective); 2] {
     ]
 }
 
-/// The same step through the Fisher path (MlpPolicy) and the HVP path (the same policy
-/// without a JVP): same CG iterations, same accepted try, θ and the full step equal to
-/// rounding. Two trust regions: the default and a wide, weakly damped one that backtracks.
+/// The same step with the policy's JVP (MlpPolicy) and with `J v` by finite differences (the
+/// same policy without a JVP): same CG iterations, same accepted try, θ and the full step
+/// equal up to the finite difference's error (1e-10 in f64) amplified by the conditioning of
+/// the damped Fisher (measured at worst 1.6e-5 on the full step, with damping 1e-3). Two trust regions: the
+/// default and a wide, weakly damped one that backtracks.
 #[test]
-fn trust_region_step_is_the_same_through_fisher_and_hvp() {
+fn trust_region_step_is_the_same_with_the_jvp_and_with_finite_differences() {
     let device = ndarray_f64();
     let configs = [
         TrustRegionConfig::default(),
@@ -296,7 +303,7 @@ fn trust_region_step_is_the_same_through_fisher_and_hvp() {
                 let tb = batch.to_tensors::<F64>(&device);
                 let fisher =
                     trust_region_step(&c.cfg, &obj, &c.theta, &tb, config, Kernels::Backend);
-                let hvp = trust_region_step(
+                let fd = trust_region_step(
                     &NoJvpFamily(c.cfg.clone()),
                     &obj,
                     &c.theta,
@@ -304,37 +311,37 @@ fn trust_region_step_is_the_same_through_fisher_and_hvp() {
                     config,
                     Kernels::Backend,
                 );
-                assert_eq!(fisher.outcome, hvp.outcome, "{name}: outcome");
+                assert_eq!(fisher.outcome, fd.outcome, "{name}: outcome");
                 assert_eq!(
-                    fisher.cg_iterations, hvp.cg_iterations,
+                    fisher.cg_iterations, fd.cg_iterations,
                     "{name}: CG iterations"
                 );
                 let err = assert_vec_rel(
                     &format!("{name}: full step"),
                     &fisher.full_step,
-                    &hvp.full_step,
-                    1e-8,
+                    &fd.full_step,
+                    1e-4,
                 );
-                assert_vec_rel(&format!("{name}: θ"), &fisher.theta, &hvp.theta, 1e-10);
+                assert_vec_rel(&format!("{name}: θ"), &fisher.theta, &fd.theta, 1e-4);
                 assert_close(
                     &format!("{name}: objective before"),
                     fisher.objective_before,
-                    hvp.objective_before,
+                    fd.objective_before,
                     1e-14,
                     1.0,
                 );
                 assert_close(
                     &format!("{name}: objective after"),
                     fisher.objective_after,
-                    hvp.objective_after,
-                    1e-9,
+                    fd.objective_after,
+                    1e-5,
                     1.0,
                 );
-                assert_close(&format!("{name}: KL"), fisher.kl, hvp.kl, 1e-7, 1e-6);
+                assert_close(&format!("{name}: KL"), fisher.kl, fd.kl, 1e-4, 1e-6);
                 assert_close(
                     &format!("{name}: CG residual"),
                     fisher.cg_residual_sq,
-                    hvp.cg_residual_sq,
+                    fd.cg_residual_sq,
                     1e-5,
                     1e-12,
                 );
@@ -395,27 +402,23 @@ fn trust_region_step_uses_the_policys_jvp() {
     }
 }
 
-/// Without a JVP there is no Fisher product, and the step is the one built from the
-/// double-backward HVP: CG on `HVP + damping · I`, scaled to the trust region.
+/// Without a JVP the Fisher product is the finite-difference one (equal to the JVP's to its
+/// error), and the step is the one built by hand from the double-backward HVP of the mean KL
+/// (the reference the first-order path replaces): CG on `HVP + damping · I`, scaled to the
+/// trust region.
 #[test]
-fn policy_without_jvp_falls_back_to_the_hvp() {
+fn policy_without_jvp_takes_the_step_of_the_kl_hessian() {
     let device = ndarray_f64();
     let config = TrustRegionConfig::default();
     for c in cases() {
         let family = NoJvpFamily(c.cfg.clone());
         let tb = c.batch.to_tensors::<F64>(&device);
-        assert_eq!(
-            fisher_vector_product(&family, &c.theta, tb.obs.clone(), &tb.dist_old, &c.vs[0]),
-            None,
-            "{}",
-            c.name
-        );
-        assert!(
-            library_fisher::<F64, _>(&family, &c, &c.vs, &device, Kernels::Backend).is_none(),
-            "{}",
-            c.name
-        );
-        // no host form either: asking for the host kernels keeps Burn's path
+        let fd = fisher_vector_product(&family, &c.theta, tb.obs.clone(), &tb.dist_old, &c.vs[0])
+            .expect("the finite-difference product");
+        let jvp = fisher_vector_product(&c.cfg, &c.theta, tb.obs.clone(), &tb.dist_old, &c.vs[0])
+            .expect("the MLP's product");
+        assert_vec_rel(&format!("{}: F v by FD vs JVP", c.name), &fd, &jvp, 1e-8);
+        // no host form: asking for the host kernels keeps Burn's path
         let op = FisherOperator::new(&family, &c.theta, tb.obs.clone(), &tb.dist_old)
             .with_kernels(Kernels::Host);
         assert_eq!(op.kernels(), Kernels::Backend, "{}", c.name);
@@ -447,7 +450,8 @@ fn policy_without_jvp_falls_back_to_the_hvp() {
                 p.distribution(tb2.obs.clone())
                     .kl_from(&tb2.dist_old)
                     .mean()
-            });
+            })
+            .expect("the built-in MLP is twice differentiable");
             hv.iter()
                 .zip(v)
                 .map(|(h, vi)| h + config.cg_damping * vi)
@@ -456,12 +460,13 @@ fn policy_without_jvp_falls_back_to_the_hvp() {
         let cg = conjugate_gradient(&avp, &g, config.cg_iters, config.cg_residual_tol);
         let scale = (2.0 * config.max_kl / tr_dot(&cg.x, &avp(&cg.x))).sqrt();
         let step: Vec<f64> = cg.x.iter().map(|x| scale * x).collect();
-        assert_vec_rel(
+        let err = assert_vec_rel(
             &format!("{}: full step", c.name),
             &report.full_step,
             &step,
-            1e-12,
+            1e-6,
         );
+        eprintln!("  {err:9.2e}  {}: full step, FD products vs HVP", c.name);
         assert_eq!(report.cg_iterations, cg.iterations, "{}", c.name);
         // and θ moved
         assert!(report.theta != c.theta, "{}: {:?}", c.name, report.outcome);

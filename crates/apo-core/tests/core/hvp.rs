@@ -112,3 +112,36 @@ fn fisher_products_are_symmetric_psd_and_linear() {
         assert_vec_rel(&format!("{}: linearity", case.name), &fw, &lin, 1e-12);
     }
 }
+
+/// A policy of `burn::nn::Linear` layers, whose backward passes Burn does not record.
+#[derive(burn::module::Module, Debug)]
+struct LinearPolicy<B: burn::tensor::backend::Backend> {
+    layer: burn::nn::Linear<B>,
+}
+
+/// `burn::nn` layers are not twice differentiable: the double backward is an error that names
+/// the module and the first-order way out, not a panic reaching the caller.
+#[test]
+fn hvp_of_an_nn_linear_module_is_an_error_naming_it() {
+    use apo_core::hvp::{hessian_vector_product, Autodiff2};
+    use burn::nn::LinearConfig;
+    use burn::tensor::Tensor;
+    let device = ndarray_f64();
+    let template = LinearPolicy::<Autodiff2<F64>> {
+        layer: LinearConfig::new(3, 2).init(&device),
+    };
+    let n = 3 * 2 + 2;
+    let theta: Vec<f64> = (0..n).map(|i| 0.1 * i as f64).collect();
+    let v = vec![1.0; n];
+    let obs = Tensor::<Autodiff2<F64>, 2>::ones([4, 3], &device);
+    let err = hessian_vector_product::<F64, _>(&template, &theta, &v, &device, |p| {
+        p.layer.forward(obs.clone()).tanh().sum().reshape([1])
+    })
+    .expect_err("nn::Linear is not twice differentiable");
+    eprintln!("{err}");
+    assert!(err.policy.contains("LinearPolicy"), "{err}");
+    assert!(
+        err.problem.contains("not twice differentiable") && err.problem.contains("FisherOperator"),
+        "{err}"
+    );
+}
