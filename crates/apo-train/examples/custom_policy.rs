@@ -3,7 +3,7 @@
 //! The task is a one-step problem written here as an [`Env`]: observe `s ~ U(-1, 1)²`, act
 //! `a ∈ [-1, 1]²`, receive `r = −‖a − A s‖²` for a fixed matrix `A`, and the episode ends. The
 //! policy is a custom module — a `burn::nn::Linear` layer for the means and a learned log-std —
-//! that implements [`Policy`]; its config implements [`PolicyFamily`]. [`BurnActor`] runs it in
+//! that implements [`Policy`]; its config implements [`PolicyFamily`]. `BurnActor` (the trainer's default actor) runs it in
 //! the rollout on Burn's NdArray backend, and [`Trainer`] does the rest. Any `burn::nn` layer
 //! works: the trust-region step needs first derivatives only. Implementing the optional
 //! [`Policy::distribution_jvp`] as well (forward-mode tangents of the distribution parameters)
@@ -17,7 +17,7 @@ use std::sync::atomic::AtomicBool;
 use apo_core::{AlgoConfig, Algorithm, DistParams, Policy, PolicyFamily};
 use apo_envs::rng::{reseed, EnvRng, Rng, SeedableRng};
 use apo_envs::{Action, Env, Space, Transition, VecEnv};
-use apo_train::{BurnActor, TrainConfig, Trainer};
+use apo_train::{TrainConfig, Trainer};
 use burn::backend::NdArray;
 use burn::module::{Module, Param};
 use burn::nn::{Linear, LinearConfig};
@@ -116,7 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let AlgoConfig::Apo(apo) = &mut config.algo {
         apo.omega1 = 1e-3;
     }
-    let mut trainer = Trainer::<NdArray, _, BurnActor<_>>::from_envs(
+    let mut trainer = Trainer::<NdArray, _>::from_envs(
         config,
         VecEnv::new(envs)?,
         &Default::default(),

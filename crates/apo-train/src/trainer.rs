@@ -32,8 +32,8 @@ use rand::rngs::StdRng;
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 
-use crate::actor::{Actor, HostActor};
-use crate::config::TrainConfig;
+use crate::actor::{Actor, BurnActor, HostActor};
+use crate::config::{ActionMapping, EpisodeReset, TrainConfig};
 use crate::error::TrainError;
 use crate::evaluation::Evaluator;
 use crate::metrics::{EpochTimes, ProgressRow};
@@ -69,8 +69,11 @@ pub struct EpochReport {
     pub update: UpdateReport,
 }
 
-/// Trains a policy of family `F` with a learner on backend `B`, acting through `A`.
-pub struct Trainer<B: Backend, F: PolicyFamily, A: Actor<B, F>>
+/// Trains a policy of family `F` with a learner on backend `B` (a plain backend such as
+/// `NdArray` or `Wgpu`: the learner adds `Autodiff` itself), acting through `A` (by default
+/// [`BurnActor<F>`], which runs any policy module; [`Trainer::mlp`] uses the faster
+/// [`HostActor`] of the built-in MLP).
+pub struct Trainer<B: Backend, F: PolicyFamily, A: Actor<B, F> = BurnActor<F>>
 where
     F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
 {
@@ -139,26 +142,30 @@ where
     }
 
     /// A trainer on the given vector of environments (any [`apo_envs::Env`], registered or
-    /// not; `config.env` and `config.num_envs` are then only labels).
+    /// not; `config.env` and `config.num_envs` are then only labels), stepped as given.
+    ///
+    /// The config keys that [`Trainer::new`] applies by wrapping the environments it makes are
+    /// not applied to environments given here; each is refused unless it is a no-op:
+    /// `max_episode_steps` must be 0 (wrap your environments in [`apo_envs::TimeLimit`]),
+    /// `episode_reset` must be `epoch` (wrap them in [`apo_envs::FixedReset`]), `physics` must be
+    /// the default (it chooses how registered MuJoCo tasks are built), and `actions = rescale`
+    /// (the default) needs an action box of `[-1, 1]` in every dimension (wrap them in
+    /// [`apo_envs::RescaleAction`], or set `actions = raw` to send the Gaussian's samples as they
+    /// are). `eval_every` must be 0: the evaluation builds its own environment from the registry.
+    ///
+    /// The type of `A` defaults to [`BurnActor<F>`](crate::BurnActor), which runs any
+    /// [`apo_core::Policy`] in the rollout: `Trainer::<NdArray, _>::from_envs(…)`.
     ///
     /// # Errors
-    /// [`TrainError::Config`] for a setting out of range, and for `eval_every > 0`: the
-    /// evaluation makes its own environment from the registry, which environments given here
-    /// need not be in.
+    /// [`TrainError::Config`] naming the first setting above that cannot be honoured, or a
+    /// setting out of range.
     pub fn from_envs(
         config: TrainConfig,
         envs: VecEnv,
         device: &B::Device,
         family: impl FnOnce(&TrainConfig, usize, ActionKind) -> F,
     ) -> Result<Self, TrainError> {
-        if config.eval_every > 0 {
-            return Err(TrainError::Config(ConfigError {
-                field: "eval_every".into(),
-                value: config.eval_every.to_string(),
-                rule: "must be 0 with Trainer::from_envs (the evaluation makes its environment from the registry: use Trainer::new with a registered environment)"
-                    .into(),
-            }));
-        }
+        check_given_envs(&config, &envs)?;
         Self::build(config, envs, device, family, None)
     }
 
@@ -466,4 +473,56 @@ where
         return Some("non-finite value-network parameters".to_string());
     }
     None
+}
+
+/// The config keys [`Trainer::from_envs`] cannot apply to environments it is given, refused
+/// unless they are no-ops there.
+fn check_given_envs(config: &TrainConfig, envs: &VecEnv) -> Result<(), TrainError> {
+    let refuse = |field: &str, value: String, rule: &str| {
+        Err(TrainError::Config(ConfigError::new(
+            field,
+            value,
+            &format!("{rule} with Trainer::from_envs, which steps the environments as given"),
+        )))
+    };
+    if config.eval_every > 0 {
+        return refuse(
+            "eval_every",
+            config.eval_every.to_string(),
+            "must be 0 (the evaluation makes its environment from the registry: use Trainer::new with a registered environment)",
+        );
+    }
+    if config.max_episode_steps > 0 {
+        return refuse(
+            "max_episode_steps",
+            config.max_episode_steps.to_string(),
+            "must be 0 (wrap each environment in apo_envs::TimeLimit instead)",
+        );
+    }
+    if config.episode_reset != EpisodeReset::default() {
+        return refuse(
+            "episode_reset",
+            format!("{:?}", config.episode_reset),
+            "must be `epoch` (wrap each environment in apo_envs::FixedReset instead)",
+        );
+    }
+    if config.physics != apo_envs::mujoco::Physics::default() {
+        return refuse(
+            "physics",
+            format!("{:?}", config.physics),
+            "must be the default (it chooses how registered MuJoCo tasks are built)",
+        );
+    }
+    if let (ActionMapping::Rescale, apo_envs::Space::Box { low, high, .. }) =
+        (config.actions, envs.action_space())
+    {
+        if low.iter().any(|&l| l != -1.0) || high.iter().any(|&h| h != 1.0) {
+            return refuse(
+                "actions",
+                "rescale".to_string(),
+                "needs an action box of [-1, 1] (wrap each environment in apo_envs::RescaleAction, or set actions = raw to send the samples unmapped)",
+            );
+        }
+    }
+    Ok(())
 }

@@ -263,6 +263,65 @@ fn evaluation_needs_a_registered_environment() {
     assert!(error.to_string().contains("eval_episodes"), "{error}");
 }
 
+/// `from_envs` steps the environments as given: each config key that `Trainer::new` applies by
+/// wrapping them is refused by name unless it is a no-op; with the wrapper applied by hand
+/// (here `RescaleAction` around Pendulum's torque box of [-2, 2]) the trainer is built.
+#[test]
+fn from_envs_refuses_the_keys_it_cannot_apply_by_name() {
+    let bare = || {
+        let envs = (0..2)
+            .map(|_| apo_envs::registry::make_with("Pendulum-v1", &unwrapped()).expect("Pendulum"))
+            .collect();
+        apo_envs::VecEnv::new(envs).expect("envs")
+    };
+    let build = |config: TrainConfig, envs| {
+        Trainer::<NdArray, _>::from_envs(config, envs, &Default::default(), |c, o, a| {
+            c.mlp_policy(o, a)
+        })
+        .err()
+        .map(|e| e.to_string())
+    };
+    let base = small(Algorithm::Trpo, "Pendulum-v1", 1, 32);
+    let mut cases: Vec<(&str, TrainConfig)> = Vec::new();
+    let mut c = base.clone();
+    c.max_episode_steps = 100;
+    cases.push(("max_episode_steps", c));
+    let mut c = base.clone();
+    c.episode_reset = apo_train::EpisodeReset::RunSeed;
+    cases.push(("episode_reset", c));
+    let mut c = base.clone();
+    c.physics = apo_envs::mujoco::Physics::Mujoco3;
+    cases.push(("physics", c));
+    // Pendulum's torque box is [-2, 2]: `actions = rescale` needs the wrapper
+    cases.push(("actions", base.clone()));
+    for (key, config) in cases {
+        let error = build(config, bare()).expect("refused");
+        assert!(
+            error.contains(&format!("`{key}`")) && error.contains("from_envs"),
+            "{key}: {error}"
+        );
+    }
+    let mut raw = base.clone();
+    raw.actions = apo_train::ActionMapping::Raw;
+    assert_eq!(build(raw, bare()), None, "actions = raw on the bare box");
+    let wrapped = (0..2)
+        .map(|_| {
+            let env = apo_envs::registry::make_with("Pendulum-v1", &unwrapped()).expect("Pendulum");
+            Box::new(apo_envs::RescaleAction::new(env).expect("a box")) as Box<dyn apo_envs::Env>
+        })
+        .collect();
+    let wrapped = apo_envs::VecEnv::new(wrapped).expect("envs");
+    assert_eq!(build(base, wrapped), None, "rescaled by hand");
+}
+
+/// Pendulum as it is registered, without `RescaleAction`.
+fn unwrapped() -> apo_envs::MakeOptions {
+    apo_envs::MakeOptions {
+        rescale_actions: false,
+        ..Default::default()
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // Policies built from `burn::nn` layers train with the trust-region algorithms
 // ---------------------------------------------------------------------------------------
@@ -275,8 +334,8 @@ mod nn_policies {
 
     use apo_core::{ActionKind, Algorithm, DistParams, Policy, PolicyFamily, PolicyStep};
     use apo_envs::rng::{reseed, EnvRng, Rng, SeedableRng};
-    use apo_envs::{Action, Env, Space, Transition, VecEnv};
-    use apo_train::{BurnActor, ProgressRow, TrainConfig, Trainer};
+    use apo_envs::{Action, Env, RescaleAction, Space, Transition, VecEnv};
+    use apo_train::{ProgressRow, TrainConfig, Trainer};
     use burn::backend::{Autodiff, NdArray, Wgpu};
     use burn::module::{AutodiffModule, Module, Param};
     use burn::nn::conv::{Conv1d, Conv1dConfig};
@@ -359,12 +418,14 @@ mod nn_policies {
     fn regress() -> VecEnv {
         let envs = (0..4)
             .map(|_| {
-                Box::new(Regress {
+                let env = Regress {
                     obs_space: Space::uniform_box(4, -1.0, 1.0),
                     action_space: Space::uniform_box(2, -2.0, 2.0),
                     state: [0.0; 4],
                     rng: EnvRng::seed_from_u64(0),
-                }) as Box<dyn Env>
+                };
+                // the policy acts in [-1, 1]²: mapped to the box [-2, 2]²
+                Box::new(RescaleAction::new(env).expect("a box")) as Box<dyn Env>
             })
             .collect();
         VecEnv::new(envs).expect("four environments")
@@ -523,18 +584,15 @@ mod nn_policies {
             panic!("{algo:?} is not a trust-region algorithm");
         };
         let max_kl = region.max_kl;
-        let mut trainer = Trainer::<B, F, BurnActor<F>>::from_envs(
-            config,
-            envs,
-            device,
-            |_, obs, action: ActionKind| {
+        // the actor defaults to BurnActor<F>, which runs any policy module
+        let mut trainer =
+            Trainer::<B, F>::from_envs(config, envs, device, |_, obs, action: ActionKind| {
                 family(Sizes {
                     obs,
                     act: action.width(),
                 })
-            },
-        )
-        .expect("valid settings");
+            })
+            .expect("valid settings");
         let stop = AtomicBool::new(false);
         let mut rows = Vec::new();
         while let Some(epoch) = trainer.epoch(&stop, &mut |_| {}).expect("a finite update") {
