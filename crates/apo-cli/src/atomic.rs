@@ -23,7 +23,7 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     sync_dir(dir)
 }
 
-/// The name of the temporary file [`write`] uses for a file named `name`.
+/// The name of the temporary file [`write()`] uses for a file named `name`.
 pub fn temp_name(name: &str) -> String {
     format!(".{name}.tmp")
 }

@@ -446,8 +446,8 @@ const ENV_BYTES_BOUND: f64 = (8u64 << 20) as f64;
 const MEASURE_ENVS_ABOVE: usize = 128;
 
 impl RunConfig {
-    /// The memory one environment of the run takes, in bytes: [`ENV_BYTES_BOUND`] for a run of
-    /// at most [`MEASURE_ENVS_ABOVE`] environments; for more, measured: the growth of this
+    /// The memory one environment of the run takes, in bytes: `ENV_BYTES_BOUND` for a run of
+    /// at most `MEASURE_ENVS_ABOVE` environments; for more, measured: the growth of this
     /// process's resident memory per environment when two more are made, reset and stepped 20
     /// times after a first one (which pays for loading the library), × 1.25. MuJoCo's model and
     /// `mjData` arena are most of it; never below 1 MiB, since the allocator can reuse memory.

@@ -35,7 +35,7 @@ pub struct TheoryArgs {
     /// How ‖μᵀ‖∞ is read: the induced norm of the row vector (Σ μ = 1) or the largest entry.
     #[arg(long, value_parser = ["induced", "max-entry"], default_value = "induced")]
     pub mu_norm: String,
-    /// The MeanVariance bound's cross term: the paper's 2·E[A]·|H|max, or 2·E[|A|]·|H|max.
+    /// The MeanVariance bound's cross term: the paper's `2·E[A]·|H|max`, or `2·E[|A|]·|H|max`.
     #[arg(long, value_parser = ["paper", "absolute"], default_value = "paper")]
     pub cross_term: String,
     /// MDPs (seeds 0..N) for check (c), the iterations.

@@ -1,5 +1,5 @@
 //! The learner: a policy, a critic and their optimizers, updated once per epoch by any
-//! [`Algorithm`].
+//! [`Algorithm`](crate::Algorithm).
 //!
 //! The learner's networks live on `Autodiff<B>`. Rollouts should not call them per
 //! step: take a copy on the backend of your choice with [`Learner::policy_on`] /

@@ -1,4 +1,4 @@
-//! The algorithms: one module each, registered by one line of [`algorithms!`].
+//! The algorithms: one module each, registered by one line of `algorithms!`.
 //!
 //! An algorithm's module holds its settings — its own section of a run's config,
 //! `[algo.<name>]` — with the paper's defaults, their ranges and their documentation, and says

@@ -48,7 +48,7 @@ pub enum PenaltyUnits {
     #[default]
     Reward,
     /// Divided by σ_A, the standard deviation the GAE advantages were normalized by
-    /// ([`TensorBatch::adv_scale`]): every term is then in the surrogate's units and the
+    /// ([`TensorBatch::adv_scale`](crate::TensorBatch::adv_scale)): every term is then in the surrogate's units and the
     /// objective does not change when the rewards are multiplied by a constant. The bound it
     /// stands for is `B_k` of the return measured in units of σ_A, i.e. `J − (k/σ_A)·Var` in
     /// reward units.

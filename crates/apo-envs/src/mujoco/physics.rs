@@ -281,7 +281,7 @@ pub(crate) trait PhysicsData: Send + Sync {
     fn warning_count(&self, warning: Warning) -> u64;
 }
 
-/// The kinds of named model objects that can be looked up with [`Model::id`].
+/// The kinds of named model objects that can be looked up with [`Model::id`](super::Model::id).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ObjKind {
     /// A body (`<body>`).
@@ -314,7 +314,7 @@ impl ObjKind {
     }
 }
 
-/// MuJoCo's simulator warnings (`mjtWarning`), counted per [`Data`] since its last reset.
+/// MuJoCo's simulator warnings (`mjtWarning`), counted per [`Data`](super::Data) since its last reset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Warning {
     /// (Near) singular inertia matrix.
