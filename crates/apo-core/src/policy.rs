@@ -9,23 +9,9 @@
 //!
 //! # Using your own policy
 //!
-//! ```ignore
-//! #[derive(Module, Debug)]
-//! struct MyPolicy<B: Backend> { /* layers */ }
-//!
-//! impl<B: Backend> Policy<B> for MyPolicy<B> {
-//!     fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> { /* … */ }
-//! }
-//!
-//! #[derive(Clone, Debug)]
-//! struct MyPolicyConfig { /* sizes */ }
-//!
-//! impl PolicyFamily for MyPolicyConfig {
-//!     type Policy<B: Backend> = MyPolicy<B>;
-//!     fn init<B: Backend>(&self, device: &B::Device) -> MyPolicy<B> { /* … */ }
-//! }
-//! ```
-//! See `examples/custom_policy.rs` for a complete program.
+//! Implement [`Policy`] for your module and [`PolicyFamily`] for its config: the
+//! [crate docs](crate#your-own-policy) show a complete, tested policy built from
+//! `burn::nn::Linear`, and `apo-train`'s `examples/custom_policy.rs` trains one.
 
 use burn::module::{Module, Param};
 use burn::tensor::backend::Backend;

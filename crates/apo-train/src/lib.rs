@@ -15,19 +15,126 @@
 //!   checkpoint schedule;
 //! * [`seed`] — the seed streams of a run.
 //!
-//! ```no_run
+//! The backend type `B` is a plain Burn backend (`NdArray`, `Wgpu`), not `Autodiff<B>`: the
+//! learner adds autodiff itself. A first build compiles Burn's dependency tree, which is most
+//! of its time (tens of minutes on 2 cores); keep it down by turning on only the backend
+//! features you use (`burn = { version = "0.21", default-features = false,
+//! features = ["std", "autodiff", "ndarray"] }`), and make debug builds fast to run with
+//! `[profile.dev.package."*"] opt-level = 2` (dependencies optimized, your crate not).
+//!
+//! # 1. A registered environment with the built-in MLP
+//!
+//! ```
 //! use apo_core::Algorithm;
 //! use apo_train::{TrainConfig, Trainer};
+//! use burn::backend::NdArray;
 //! use std::sync::atomic::AtomicBool;
 //!
-//! let mut config = TrainConfig::defaults(Algorithm::Apo, "Hopper-v4");
-//! config.epochs = 10;
-//! let mut trainer = Trainer::<burn::backend::NdArray, _, _>::mlp(config, &Default::default(), 0)?;
-//! let stop = AtomicBool::new(false);
+//! let mut config = TrainConfig::defaults(Algorithm::Apo, "Pendulum-v1");
+//! config.epochs = 2;
+//! config.steps_per_epoch = 400; // the paper: 30 000
+//! // the built-in (64, 64) tanh MLP, acting through its fast host copy; 1 thread
+//! let mut trainer = Trainer::<NdArray, _, _>::mlp(config, &Default::default(), 1)?;
+//! let stop = AtomicBool::new(false); // set it (e.g. from a signal handler) to stop cleanly
 //! while let Some(epoch) = trainer.epoch(&stop, &mut |_| {})? {
 //!     println!("epoch {}: mean return {:?}", epoch.row.epoch, epoch.row.ep_ret_mean);
 //! }
+//! assert_eq!(trainer.state().env_steps, 800);
 //! # Ok::<(), apo_train::TrainError>(())
+//! ```
+//!
+//! # 2. Your own `burn::nn` policy
+//!
+//! Any module that implements [`apo_core::Policy`], built by an [`apo_core::PolicyFamily`]
+//! (see apo-core's crate docs). The family closure gets the config, the environment's
+//! observation size and its [`apo_core::ActionKind`]; the actor defaults to [`BurnActor`].
+//!
+//! ```
+//! use apo_core::{ActionKind, Algorithm, DistParams, Policy, PolicyFamily};
+//! use apo_train::{TrainConfig, Trainer};
+//! use burn::backend::NdArray;
+//! use burn::module::Module;
+//! use burn::nn::{Linear, LinearConfig};
+//! use burn::tensor::backend::Backend;
+//! use burn::tensor::Tensor;
+//! use std::sync::atomic::AtomicBool;
+//!
+//! /// Logits of a categorical policy from one `nn::Linear` layer.
+//! #[derive(Module, Debug)]
+//! struct Logits<B: Backend> {
+//!     layer: Linear<B>,
+//! }
+//!
+//! impl<B: Backend> Policy<B> for Logits<B> {
+//!     fn distribution(&self, obs: Tensor<B, 2>) -> DistParams<B> {
+//!         DistParams::Categorical { logits: self.layer.forward(obs) } // [batch, n]
+//!     }
+//! }
+//!
+//! #[derive(Debug, Clone)]
+//! struct LogitsConfig {
+//!     obs: usize,
+//!     actions: usize,
+//! }
+//!
+//! impl PolicyFamily for LogitsConfig {
+//!     type Policy<B: Backend> = Logits<B>;
+//!     fn init<B: Backend>(&self, device: &B::Device) -> Logits<B> {
+//!         Logits { layer: LinearConfig::new(self.obs, self.actions).init(device) }
+//!     }
+//! }
+//!
+//! let mut config = TrainConfig::defaults(Algorithm::Trpo, "CartPole-v1");
+//! config.epochs = 2;
+//! config.steps_per_epoch = 200;
+//! let family = |_: &TrainConfig, obs: usize, action: ActionKind| LogitsConfig {
+//!     obs,
+//!     actions: action.width(),
+//! };
+//! let mut trainer = Trainer::<NdArray, _>::new(config, &Default::default(), 1, family)?;
+//! let before = trainer.learner().policy_params();
+//! while trainer.epoch(&AtomicBool::new(false), &mut |_| {})?.is_some() {}
+//! assert_ne!(trainer.learner().policy_params(), before);
+//! # Ok::<(), apo_train::TrainError>(())
+//! ```
+//!
+//! # 3. Your own environment
+//!
+//! Any [`apo_envs::Env`] (apo-envs' crate docs show one), as a [`apo_envs::VecEnv`] given to
+//! [`Trainer::from_envs`], which steps the environments as they are: the config keys that
+//! [`Trainer::new`] applies by wrapping the environments it makes (`max_episode_steps`,
+//! `episode_reset`, `actions = rescale` on a box other than `[-1, 1]`, `physics`) are refused
+//! by name unless they are no-ops — wrap yours in [`apo_envs::TimeLimit`],
+//! [`apo_envs::FixedReset`] or [`apo_envs::RescaleAction`] instead.
+//!
+//! ```
+//! use apo_core::Algorithm;
+//! use apo_envs::{RescaleAction, VecEnv};
+//! use apo_train::{HostActor, TrainConfig, Trainer};
+//! use burn::backend::NdArray;
+//! use std::sync::atomic::AtomicBool;
+//!
+//! // stand-ins for your own environments: Pendulum, its torque box [-2, 2] mapped from the
+//! // policy's [-1, 1] by RescaleAction (registered environments come with it already)
+//! let envs = (0..2)
+//!     .map(|_| {
+//!         let options = apo_envs::MakeOptions { rescale_actions: false, ..Default::default() };
+//!         let env = apo_envs::make_with("Pendulum-v1", &options)?;
+//!         Ok(Box::new(RescaleAction::new(env)?) as Box<dyn apo_envs::Env>)
+//!     })
+//!     .collect::<Result<Vec<_>, apo_envs::EnvError>>()?;
+//! let mut config = TrainConfig::defaults(Algorithm::Apo, "my-pendulum"); // a label only
+//! config.epochs = 1;
+//! config.steps_per_epoch = 200;
+//! let mut trainer = Trainer::<NdArray, _, HostActor>::from_envs(
+//!     config,
+//!     VecEnv::new(envs)?,
+//!     &Default::default(),
+//!     |config, obs, action| config.mlp_policy(obs, action),
+//! )?;
+//! let epoch = trainer.epoch(&AtomicBool::new(false), &mut |_| {})?.expect("one epoch");
+//! assert_eq!(epoch.row.env_steps, 200);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 pub mod actor;
