@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The project's tests: formatting, lints (warnings are errors), every crate's tests, and the
-# examples of the training library run for a few hundred steps.
+# The project's tests: formatting, lints (warnings are errors), the libraries' docs, every
+# crate's tests and doctests, an outside crate on the public API, and the examples of the
+# training library run for a few hundred steps.
 # Needs rustfmt and clippy (rustup's default profile has both) and the packages and assets
 # that `scripts/setup.sh` (or `--deps-only`) installs; MuJoCo 3.17 is fetched here when missing.
 set -euo pipefail
@@ -16,8 +17,15 @@ export MUJOCO_DYNAMIC_LINK_DIR="$mujoco3"
 export LD_LIBRARY_PATH="$mujoco3${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 features=apo-envs/mujoco3,apo-cli/mujoco3
 cargo fmt --all -- --check
+cargo fmt --manifest-path tests/external-user/Cargo.toml -- --check
 cargo clippy --workspace --all-targets --features "$features" -- -D warnings
+cargo clippy --manifest-path tests/external-user/Cargo.toml --target-dir target -- -D warnings
+# the libraries' documentation, every link resolved (the binaries' docs are their --help)
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --lib --features "$features"
 cargo test --workspace --features "$features"
+# a crate outside the workspace that uses only the public API of apo-core, apo-envs and
+# apo-train (tests/external-user): the three user stories for a few epochs each, wgpu included
+cargo run --profile test -q --manifest-path tests/external-user/Cargo.toml --target-dir target -- --wgpu
 # apo-cli's opt-in features, built once together: data-parallel training under Open MPI's
 # mpirun (`mpi`: the binary and its `mpi_update` example, then the tests that launch them) and
 # the Atari games (`atari`: listed, trained, resumed, evaluated from the command line)
