@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! # apo-core
 //!
 //! Absolute Policy Optimization (APO), Proximal APO (PAPO) and the baselines TRPO, PPO, A2C,

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! Environments for apo, with Gymnasium semantics.
 //!
 //! * [`env`] — the [`Env`] trait: spaces, `reset(seed)`, `step(action)` → [`Transition`]

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! # apo-train
 //!
 //! The training loop of apo as a library, for your own Rust programs (the `apo` command line

@@ -117,8 +117,9 @@ impl<B: Backend, F: PolicyFamily, A: Actor<B, F>> Trainer<B, F, A>
 where
     F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
 {
-    /// A trainer of the policy family that `family` builds for the environment's observation
-    /// dimension and action kind, on `config.num_envs` copies of the registered environment
+    /// A trainer of the policy family that `family(&config, observation_dim, action)` builds
+    /// (the environment's flat observation size and its [`ActionKind`]), on
+    /// `config.num_envs` copies of the registered environment
     /// `config.env` stepped on `threads` threads (0: the cores available; the results do not
     /// depend on it). The networks are initialized from `config.seed` on `device`.
     ///
@@ -142,7 +143,8 @@ where
     }
 
     /// A trainer on the given vector of environments (any [`apo_envs::Env`], registered or
-    /// not; `config.env` and `config.num_envs` are then only labels), stepped as given.
+    /// not; `config.env` and `config.num_envs` are then only labels), stepped as given, with
+    /// the policy family that `family(&config, observation_dim, action)` builds.
     ///
     /// The config keys that [`Trainer::new`] applies by wrapping the environments it makes are
     /// not applied to environments given here; each is refused unless it is a no-op:
