@@ -3,14 +3,16 @@
 
 use std::time::Instant;
 
-use apo_core::algorithm::{ApoConfig, Settings, TrpoConfig};
+use apo_core::algorithm::{ApoConfig, TrpoConfig};
 use apo_core::flat::{flatten, to_host};
 use apo_core::hvp::hessian_vector_product;
 use apo_core::inference::{ActBuffers, HostPolicy};
-use apo_core::trust_region::trust_region_step;
+use apo_core::objective::{PenaltyUnits, Switch};
+use apo_core::trust_region::{trust_region_step, TrustRegionConfig};
 use apo_core::{
     ActionKind, AlgoConfig, AlgorithmConfig, Batch, BufferLayout, FisherOperator, Kernels, Learner,
-    MlpPolicyConfig, Policy, PolicyFamily, RolloutBuffer, TensorBatch, ValueConfig,
+    MlpPolicy, MlpPolicyConfig, Policy, PolicyFamily, PolicyStep, RolloutBuffer, TensorBatch,
+    ValueConfig,
 };
 use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
@@ -27,13 +29,19 @@ pub struct UpdateTimings {
     pub trpo_s: f64,
     /// One APO trust-region step.
     pub apo_s: f64,
+    /// One APO trust-region step with `--preset robust`'s variant (the penalty in the
+    /// advantages' units, the switch off, ω1 0.01, ω2 0.005).
+    pub apo_robust_s: f64,
     /// One Hessian-vector product of the mean KL by double backward (the reference path).
     pub hvp_s: f64,
     /// One Fisher-vector product `Jᵀ M J v / N` (what the trust-region step uses for MLP
     /// policies) on Burn's graph and on the host kernels.
     pub fvp_s: [f64; 2],
-    /// Line-search tries of the last TRPO and APO steps.
-    pub tries: (String, String),
+    /// One Fisher-vector product of the same policy without its JVP (`J v` by a finite
+    /// difference: what a `burn::nn` policy gets), on Burn's graph.
+    pub fvp_fd_s: f64,
+    /// Line-search tries of the last TRPO, APO and robust-APO steps.
+    pub tries: [String; 3],
     /// One Adam step of the value fit (the paper's 80 per epoch, full batch) on Burn's graph
     /// and on the host kernels.
     pub value_step_s: (f64, f64),
@@ -92,18 +100,30 @@ pub fn update<B: Backend>(
     let mut host = HostPolicy::new(&policy_b, action);
     let batch = synthetic_batch(&mut host, n, obs_dim, act_dim, &mut rng);
     let tb = TensorBatch::<B>::new(&batch, action, device);
-    let (trpo, apo) = (TrpoConfig::paper_defaults(), ApoConfig::paper_defaults());
-    let (trpo, apo) = (
-        (trpo.objective(), trpo.trust_region),
-        (apo.objective(), apo.trust_region),
-    );
-    let (mut trpo_s, mut apo_s, mut tries) = (vec![], vec![], (String::new(), String::new()));
-    // one warm-up of each, then alternate so that both see the same machine state
+    let robust = ApoConfig {
+        penalty_units: PenaltyUnits::Advantage,
+        switch: Switch::Off,
+        omega1: 0.01,
+        omega2: 0.005,
+        ..ApoConfig::paper_defaults()
+    };
+    let configs = [
+        AlgoConfig::Trpo(TrpoConfig::paper_defaults()),
+        AlgoConfig::Apo(ApoConfig::paper_defaults()),
+        AlgoConfig::Apo(robust),
+    ]
+    .map(|c| {
+        let region = match c.settings().policy_step() {
+            PolicyStep::TrustRegion(region) => *region,
+            PolicyStep::Proximal(_) => TrustRegionConfig::default(),
+        };
+        (c.objective(), region)
+    });
+    let mut times: [Vec<f64>; 3] = Default::default();
+    let mut tries: [String; 3] = Default::default();
+    // one warm-up of each, then in turn so that all see the same machine state
     for round in 0..=repeats {
-        for (config, times, tried) in [
-            (&trpo, &mut trpo_s, &mut tries.0),
-            (&apo, &mut apo_s, &mut tries.1),
-        ] {
+        for ((config, times), tried) in configs.iter().zip(&mut times).zip(&mut tries) {
             let start = Instant::now();
             let report = trust_region_step(&family, &config.0, &theta, &tb, &config.1, kernels);
             if round > 0 {
@@ -112,6 +132,7 @@ pub fn update<B: Backend>(
             *tried = format!("{:?}", report.outcome);
         }
     }
+    let [trpo_s, apo_s, apo_robust_s] = times.map(median);
     let tb2 = tb.lift::<Autodiff<B>>().lift::<Autodiff<Autodiff<B>>>();
     let template = family.init::<Autodiff<Autodiff<B>>>(device);
     let v: Vec<f64> = (0..theta.len())
@@ -143,6 +164,22 @@ pub fn update<B: Backend>(
             .collect();
         median(times)
     });
+    let fisher_fd = FisherOperator::new(
+        &WithoutJvp(family.clone()),
+        &theta,
+        tb.obs.clone(),
+        &tb.dist_old,
+    );
+    let fvp_fd_s = median(
+        (0..=repeats)
+            .map(|_| {
+                let start = Instant::now();
+                std::hint::black_box(fisher_fd.apply(&v));
+                start.elapsed().as_secs_f64()
+            })
+            .skip(1)
+            .collect(),
+    );
     let value_step_s = (
         value_step::<B>(device, &batch, obs_dim, action, Kernels::Backend, repeats),
         value_step::<B>(device, &batch, obs_dim, action, Kernels::Host, repeats),
@@ -150,11 +187,39 @@ pub fn update<B: Backend>(
     UpdateTimings {
         value_step_s,
         params: theta.len(),
-        trpo_s: median(trpo_s),
-        apo_s: median(apo_s),
+        trpo_s,
+        apo_s,
+        apo_robust_s,
         hvp_s: median(hvp_s),
         fvp_s,
+        fvp_fd_s,
         tries,
+    }
+}
+
+/// The built-in MLP policy without its forward-mode JVP, as a `burn::nn` policy is.
+#[derive(burn::module::Module, Debug)]
+struct NoJvp<B: Backend> {
+    inner: MlpPolicy<B>,
+}
+
+impl<B: Backend> Policy<B> for NoJvp<B> {
+    fn distribution(&self, obs: burn::tensor::Tensor<B, 2>) -> apo_core::DistParams<B> {
+        self.inner.distribution(obs)
+    }
+}
+
+/// The family of [`NoJvp`].
+#[derive(Debug, Clone)]
+struct WithoutJvp(MlpPolicyConfig);
+
+impl PolicyFamily for WithoutJvp {
+    type Policy<B: Backend> = NoJvp<B>;
+
+    fn init<B: Backend>(&self, device: &B::Device) -> NoJvp<B> {
+        NoJvp {
+            inner: self.0.init(device),
+        }
     }
 }
 

@@ -53,7 +53,7 @@
 //! ```
 //!
 //! two forward passes on the plain backend, where `ε_M` is the machine epsilon of the
-//! backend's float (`f32`: 1.19e-7, so every parameter moves by at most 4.9e-3 of its scale;
+//! tensors' float type (`f32`: 1.19e-7, so every parameter moves by at most 4.9e-3 of its scale;
 //! `f64`: 2.2e-16). The central difference's truncation error is `O(ε²)` and its rounding error
 //! `O(ε_M / ε)`; `ε ∝ ε_M^{1/3}` balances them (Nocedal & Wright, *Numerical Optimization*,
 //! 2nd ed., §8.1), leaving a relative error of order `ε_M^{2/3}`: about 1e-5 to 1e-4 in `f32`
@@ -65,7 +65,7 @@ use std::cell::RefCell;
 use burn::backend::Autodiff;
 use burn::tensor::activation::softmax;
 use burn::tensor::backend::Backend;
-use burn::tensor::Tensor;
+use burn::tensor::{DType, Tensor};
 
 use crate::distribution::DistParams;
 use crate::flat::{from_host, unflatten};
@@ -252,7 +252,7 @@ impl<B: Backend, F: PolicyFamily> FisherOperator<B, F> {
         let v_max = max_abs(v);
         // v = 0: both points are θ_j and the difference is the zero tangent
         let eps = if v_max > 0.0 {
-            finite_difference_scale::<B>() * max_abs(&self.theta).max(1.0) / v_max
+            finite_difference_scale(self.obs.dtype()) * max_abs(&self.theta).max(1.0) / v_max
         } else {
             1.0
         };
@@ -292,13 +292,15 @@ impl<B: Backend, F: PolicyFamily> FisherOperator<B, F> {
     }
 }
 
-/// `ε_M^{1/3}` of `B`'s float: the finite-difference step per unit of parameter scale.
-fn finite_difference_scale<B: Backend>() -> f64 {
-    let machine_epsilon = match std::mem::size_of::<B::FloatElem>() {
-        8 => f64::EPSILON,
-        4 => f64::from(f32::EPSILON),
-        // 2-byte floats: bf16's 2⁻⁷ (f16's, 2⁻¹⁰, is finer)
-        _ => 2f64.powi(-7),
+/// `ε_M^{1/3}` of the float type `dtype` (the tensors' own: Burn chooses it per device at run
+/// time): the finite-difference step per unit of parameter scale.
+fn finite_difference_scale(dtype: DType) -> f64 {
+    let machine_epsilon = match dtype {
+        DType::F64 => f64::EPSILON,
+        DType::F16 => 2f64.powi(-10),
+        DType::BF16 => 2f64.powi(-7),
+        // f32, and anything narrower taken as f32
+        _ => f64::from(f32::EPSILON),
     };
     machine_epsilon.cbrt()
 }

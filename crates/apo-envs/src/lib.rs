@@ -1,7 +1,7 @@
 #![warn(missing_docs)]
 //! Environments for apo, with Gymnasium semantics.
 //!
-//! * [`env`] — the [`Env`] trait: spaces, `reset(seed)`, `step(action)` → [`Transition`]
+//! * [`env`](mod@env) — the [`Env`] trait: spaces, `reset(seed)`, `step(action)` → [`Transition`]
 //!   (reward, `terminated` vs `truncated`, cost, instability flags);
 //! * [`registry`] — every environment by name ([`make`], [`list`]): the classic-control tasks,
 //!   the Gymnasium MuJoCo v4 suite, GUARD and the dexterous hands ([`mujoco`]), your own

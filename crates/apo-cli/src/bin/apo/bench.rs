@@ -136,15 +136,18 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 "backend={backend} kernels={kernels} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
                 t.params
             );
-            println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries.0);
-            println!("apo_update_s={:.4} ({})", t.apo_s, t.tries.1);
+            println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries[0]);
+            println!("apo_update_s={:.4} ({})", t.apo_s, t.tries[1]);
+            println!("apo_robust_update_s={:.4} ({})", t.apo_robust_s, t.tries[2]);
             println!("hvp_s={:.5}", t.hvp_s);
             println!("fvp_s_burn={:.5}", t.fvp_s[0]);
             println!("fvp_s_host={:.5}", t.fvp_s[1]);
+            println!("fvp_s_finite_difference={:.5}", t.fvp_fd_s);
             let (burn_step, host_step) = t.value_step_s;
             println!("value_step_s_burn={burn_step:.5}");
             println!("value_step_s_host={host_step:.5}");
             println!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s);
+            println!("apo_robust_over_trpo={:.3}", t.apo_robust_s / t.trpo_s);
         }
         BenchCommand::Epoch {
             algo,
