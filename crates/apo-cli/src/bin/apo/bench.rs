@@ -8,9 +8,10 @@ use clap::Subcommand;
 
 #[derive(Subcommand)]
 pub enum BenchCommand {
-    /// Time one APO and one TRPO trust-region update, a KL Hessian-vector product (double
-    /// backward), a Fisher-vector product and a value-fit Adam step (the last two on Burn's
-    /// graph and on the host kernels).
+    /// Time one TRPO, one APO and one robust-APO (`--preset robust`'s variant) trust-region
+    /// update, a KL Hessian-vector product (double backward), a Fisher-vector product and a
+    /// value-fit Adam step (the last two on Burn's graph and on the host kernels), and the
+    /// Fisher-vector product of a policy without a JVP (by finite differences).
     Update {
         /// Backend.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
