@@ -302,7 +302,11 @@ pub struct EpochSplit {
     pub policy_s: f64,
     /// The value update.
     pub value_s: f64,
-    /// Everything else: host-copy synchronization, progress and checkpoint writes.
+    /// The time the parts overlapped, `max(0, rollout + policy + value − total)`: with the
+    /// pipelined epoch, the value fit hidden behind the next epoch's rollout.
+    pub hidden_s: f64,
+    /// Everything else: host-copy synchronization, progress and checkpoint writes
+    /// (`max(0, total − rollout − policy − value)`).
     pub other_s: f64,
     /// Environment steps per second over the epoch (`steps / total_s`).
     pub steps_per_s: f64,
@@ -355,7 +359,8 @@ pub fn epoch(config: &crate::RunConfig, threads: usize) -> anyhow::Result<Vec<Ep
                 rollout_s: r.rollout_s,
                 policy_s: r.update_pi_s,
                 value_s: r.update_v_s,
-                other_s: total_s - r.rollout_s - r.update_pi_s - r.update_v_s,
+                hidden_s: (r.rollout_s + r.update_pi_s + r.update_v_s - total_s).max(0.0),
+                other_s: (total_s - r.rollout_s - r.update_pi_s - r.update_v_s).max(0.0),
                 steps_per_s: steps as f64 / total_s.max(1e-9),
             }
         })

@@ -359,7 +359,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("num_envs", "environments stepped together, the epoch's steps split between them; 1..=65536"),
     ("normalize_obs", "normalize observations with running statistics (saved in checkpoints); true/false"),
     ("backend", "backend of the updates: \"cpu\" (NdArray) or \"wgpu\""),
-    ("kernels", "where the Fisher-vector products and the value fit run: \"host\" (apo's f32 CPU kernels), \"backend\" (Burn's graph on `backend`) or \"auto\" (host with cpu, backend with wgpu)"),
+    ("kernels", "where the Fisher-vector products, the proximal policy steps and the value fit run: \"host\" (apo's f32 CPU kernels), \"backend\" (Burn's graph on `backend`) or \"auto\" (host with cpu, backend with wgpu)"),
     ("checkpoint_every", "write a checkpoint every this many epochs (and at the end and on interrupt); ≥ 1"),
     ("keep_checkpoint_every", "also keep every this many epochs' checkpoint as checkpoints/epoch-<N> (`apo eval --checkpoint N`); 0 = off"),
     ("hidden", "hidden layer sizes of the policy and value MLPs, tanh (paper: [64, 64]); 1..=64 layers of 1..=1048576"),
@@ -373,6 +373,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("eval_episodes", "episodes of each evaluation; 1..=1000000"),
     ("eval_deterministic", "evaluate with the most likely action (a Gaussian's mean) instead of sampling; true/false"),
     ("eval_best", "the evaluation statistic that picks checkpoints/best (`apo eval --checkpoint best`): \"mean\", \"worst\" or \"cvar10\""),
+    ("pipeline", "overlap each epoch's value fit with the next epoch's rollout (bit-identical results; docs/architecture.md); true/false"),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];
 

@@ -111,6 +111,11 @@ pub struct RolloutBuffer {
     batch: Batch,
     rewards: Vec<f32>,
     path_start: usize,
+    /// Paths ended by [`RolloutBuffer::end_path`] and not yet finished: where each ends, and
+    /// the row of `bootstrap_obs` to bootstrap from (`None`: from 0).
+    pending: Vec<(usize, Option<usize>)>,
+    /// The observations to bootstrap pending paths from, `[rows, observation_dim]`.
+    bootstrap_obs: Vec<f32>,
 }
 
 impl RolloutBuffer {
@@ -135,6 +140,8 @@ impl RolloutBuffer {
             batch,
             rewards: Vec::with_capacity(capacity),
             path_start: 0,
+            pending: Vec::new(),
+            bootstrap_obs: Vec::new(),
         }
     }
 
@@ -182,8 +189,69 @@ impl RolloutBuffer {
     /// Ends the current path, bootstrapping from `last_value` (0 when terminated,
     /// `V(s_T)` when truncated or cut by the end of the epoch), and computes its
     /// `delta`, (unnormalized) GAE advantages and rewards-to-go.
+    ///
+    /// # Panics
+    /// If paths ended by [`RolloutBuffer::end_path`] are still waiting for
+    /// [`RolloutBuffer::finish_paths`].
     pub fn finish_path(&mut self, last_value: f32) {
-        let (start, end) = (self.path_start, self.batch.len);
+        assert!(
+            self.pending.is_empty(),
+            "finish_path with paths waiting for finish_paths"
+        );
+        self.finish_path_at(self.batch.len, last_value);
+    }
+
+    /// Ends the current path without computing anything yet: the critic's values of its steps,
+    /// its bootstrap value and its advantages come from [`RolloutBuffer::finish_paths`]. So a
+    /// rollout needs no critic while it runs (the values of a whole batch are then one batched
+    /// call). `bootstrap`: `None` to bootstrap from 0 (terminated), else the observation
+    /// `[observation_dim]` whose `V` to bootstrap from (truncated, or cut by the epoch's end).
+    /// The values stored with [`RolloutBuffer::store`] for these steps are replaced.
+    ///
+    /// # Panics
+    /// If `bootstrap` has the wrong length.
+    pub fn end_path(&mut self, bootstrap: Option<&[f32]>) {
+        let row = bootstrap.map(|obs| {
+            assert_eq!(obs.len(), self.layout.observation_dim, "observation width");
+            self.bootstrap_obs.extend_from_slice(obs);
+            self.bootstrap_obs.len() / self.layout.observation_dim - 1
+        });
+        self.pending.push((self.batch.len, row));
+    }
+
+    /// Finishes every path ended by [`RolloutBuffer::end_path`] since the last finished one:
+    /// `critic(obs, rows, out)` fills `out` with `V` of `obs: [rows, observation_dim]` →
+    /// `[rows]`; it is called once for those paths' steps and once for their bootstrap
+    /// observations. Then each path's `delta`, advantages and rewards-to-go are computed as
+    /// [`RolloutBuffer::finish_path`] computes them.
+    pub fn finish_paths(&mut self, critic: &mut dyn FnMut(&[f32], usize, &mut Vec<f32>)) {
+        let Some(&(end, _)) = self.pending.last() else {
+            return;
+        };
+        let (start, dim) = (self.path_start, self.layout.observation_dim);
+        let mut values = Vec::with_capacity(end - start);
+        critic(
+            &self.batch.obs[start * dim..end * dim],
+            end - start,
+            &mut values,
+        );
+        self.batch.value[start..end].copy_from_slice(&values[..end - start]);
+        let mut bootstraps = Vec::new();
+        let rows = self.bootstrap_obs.len() / dim;
+        if rows > 0 {
+            critic(&self.bootstrap_obs, rows, &mut bootstraps);
+        }
+        for (end, row) in std::mem::take(&mut self.pending) {
+            let last_value = row.map_or(0.0, |r| bootstraps[r]);
+            self.finish_path_at(end, last_value);
+        }
+        self.bootstrap_obs.clear();
+    }
+
+    /// Finishes the path from `path_start` to `end` (exclusive), bootstrapping from
+    /// `last_value`.
+    fn finish_path_at(&mut self, end: usize, last_value: f32) {
+        let start = self.path_start;
         let (gamma, gl) = (self.gamma, self.gamma * self.lambda);
         let mut next_value = f64::from(last_value);
         let mut adv_acc = 0.0f64;
@@ -208,9 +276,11 @@ impl RolloutBuffer {
         self.path_start = end;
     }
 
-    /// Number of steps of the path in progress (0 right after [`RolloutBuffer::finish_path`]).
+    /// Number of steps of the path in progress (0 right after [`RolloutBuffer::finish_path`]
+    /// or [`RolloutBuffer::end_path`]).
     pub fn path_len(&self) -> usize {
-        self.batch.len - self.path_start
+        let open = self.pending.last().map_or(self.path_start, |&(end, _)| end);
+        self.batch.len - open
     }
 
     /// Takes the epoch's batch, with advantages normalized to mean 0 and standard
@@ -239,7 +309,10 @@ impl RolloutBuffer {
     pub fn take_all_over(buffers: &mut [RolloutBuffer], comm: &Comm) -> Batch {
         let mut batch = Batch::default();
         for buffer in buffers.iter_mut() {
-            assert_eq!(buffer.path_len(), 0, "take() with an unfinished path");
+            assert!(
+                buffer.path_len() == 0 && buffer.pending.is_empty(),
+                "take() with an unfinished path"
+            );
             let part = std::mem::take(&mut buffer.batch);
             buffer.rewards.clear();
             buffer.path_start = 0;

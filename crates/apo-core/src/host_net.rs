@@ -164,6 +164,11 @@ pub(crate) struct Part {
 }
 
 impl Part {
+    /// The output of the last forward pass, `[rows, output]`.
+    pub(crate) fn output(&self) -> &[f32] {
+        self.acts.last().map_or(&[], |a| a.as_slice())
+    }
+
     /// The network's output from the last forward pass, `[rows, output]`, and the caller's
     /// buffer.
     pub(crate) fn output_and_head(&mut self) -> (&[f32], &mut Vec<f32>) {

@@ -18,6 +18,7 @@ use crate::algorithm::{AlgoConfig, ConfigError, PolicyStep};
 use crate::buffer::Batch;
 use crate::collective::Comm;
 use crate::flat::{flatten, from_host, to_host, unflatten};
+use crate::host_proximal::host_proximal_update;
 use crate::kernels::Kernels;
 use crate::objective::{Multipliers, Objective};
 use crate::policy::{check_distribution, ActionKind, Policy, PolicyError, PolicyFamily};
@@ -159,13 +160,14 @@ where
         &self.comm
     }
 
-    /// Where the Fisher-vector products and the value fit run from now on (default
+    /// Where the Fisher-vector products, the proximal policy steps and the value fit run from
+    /// now on (default
     /// [`Kernels::Backend`]). The networks and optimizer states do not depend on it.
     pub fn set_kernels(&mut self, kernels: Kernels) {
         self.kernels = kernels;
     }
 
-    /// Where the Fisher-vector products and the value fit run.
+    /// Where the Fisher-vector products, the proximal policy steps and the value fit run.
     pub fn kernels(&self) -> Kernels {
         self.kernels
     }
@@ -260,12 +262,30 @@ where
 
     /// One epoch's update of the policy (by the configured algorithm) and of the value
     /// network, on `batch` collected by the current policy (with several ranks, this rank's
-    /// part of the epoch's batch); `rng` shuffles minibatches.
+    /// part of the epoch's batch); `rng` shuffles minibatches. The same as
+    /// [`Learner::update_policy`] then [`Learner::update_value`].
     ///
     /// # Errors
     /// [`PolicyError`] when the policy's distributions on the batch's states do not fit its
     /// actions (family, action width or batch size); nothing is updated then.
     pub fn update(
+        &mut self,
+        batch: &Batch,
+        rng: &mut impl Rng,
+    ) -> Result<UpdateReport, PolicyError> {
+        let mut report = self.update_policy(batch, rng)?;
+        self.update_value(batch, rng, &mut report);
+        Ok(report)
+    }
+
+    /// The policy's half of [`Learner::update`]: the report's value fields (`loss_v`,
+    /// `value_update_s`) are 0 until [`Learner::update_value`] fills them in. The policy step
+    /// does not read the critic (the batch holds the advantages), so the value update may run
+    /// later, while the next rollout runs with the new policy.
+    ///
+    /// # Errors
+    /// As [`Learner::update`]; nothing is updated then.
+    pub fn update_policy(
         &mut self,
         batch: &Batch,
         rng: &mut impl Rng,
@@ -301,22 +321,76 @@ where
                 (Some(report.outcome), Some(report.rejections), None)
             }
             PolicyStep::Proximal(step) => {
-                let policy = self.policy.clone();
-                let (policy, report) = proximal_update(
-                    policy,
-                    &mut self.policy_optim,
-                    &objective,
-                    &tb1,
-                    step,
-                    self.multipliers.as_mut(),
-                    rng,
-                );
-                self.policy = policy;
+                let host = match self.kernels {
+                    Kernels::Host => host_proximal_update(
+                        &self.policy,
+                        &self.policy_optim,
+                        &objective,
+                        &batch.obs,
+                        &tb1,
+                        step,
+                        self.multipliers.as_mut(),
+                        rng,
+                    ),
+                    Kernels::Backend => None,
+                };
+                let report = match host {
+                    Some((policy, optim, report)) => {
+                        self.policy = policy;
+                        self.policy_optim = optim;
+                        report
+                    }
+                    None => {
+                        let (policy, report) = proximal_update(
+                            self.policy.clone(),
+                            &mut self.policy_optim,
+                            &objective,
+                            &tb1,
+                            step,
+                            self.multipliers.as_mut(),
+                            rng,
+                        );
+                        self.policy = policy;
+                        report
+                    }
+                };
                 (None, None, Some(report))
             }
         };
         let policy_update_s = start.elapsed().as_secs_f64();
-        let value_start = std::time::Instant::now();
+        let after = self
+            .policy_on::<B>(&self.device)
+            .distribution(tb.obs.clone());
+        let kl = to_host(self.comm.mean(after.kl_from(&tb.dist_old)))[0];
+        // the switch's diagnostics exist for APO and PAPO only
+        let terms_after = matches!(objective, Objective::Apo(_) | Objective::Papo { .. })
+            .then(|| objective.evaluate(&after, &tb));
+        Ok(UpdateReport {
+            loss_pi: -to_host(terms.objective)[0],
+            mean_surr: to_host(terms.mean_surr)[0],
+            mean_variance: scalar(terms.mean_variance),
+            variance_mean: scalar(terms.variance_mean),
+            kl,
+            entropy,
+            loss_v: 0.0,
+            line_search,
+            rejections,
+            bias: terms_after.as_ref().and_then(|t| scalar(t.bias.clone())),
+            min_j_sq_on: terms_after
+                .and_then(|t| scalar(t.min_j_sq_on))
+                .map(|on| on > 0.5),
+            proximal,
+            multipliers: self.multipliers,
+            policy_update_s,
+            value_update_s: 0.0,
+        })
+    }
+
+    /// The value network's half of [`Learner::update`], on the same `batch` and continuing
+    /// the same `rng` as [`Learner::update_policy`]: fills in `report`'s `loss_v` (the mean
+    /// squared error before the update) and `value_update_s`.
+    pub fn update_value(&mut self, batch: &Batch, rng: &mut impl Rng, report: &mut UpdateReport) {
+        let start = std::time::Instant::now();
         let value_config = self.config.common().value_update;
         let host = match self.kernels {
             Kernels::Host => host_value_update::<B>(
@@ -336,10 +410,13 @@ where
                 report
             }
             None => {
+                let tb = TensorBatch::<B>::new(batch, self.action, &self.device)
+                    .with_comm(self.comm.clone())
+                    .lift::<Ad<B>>();
                 let (value, report) = value_update(
                     self.value.clone(),
                     &mut self.value_optim,
-                    &tb1,
+                    &tb,
                     &value_config,
                     rng,
                 );
@@ -347,33 +424,7 @@ where
                 report
             }
         };
-        let value_update_s = value_start.elapsed().as_secs_f64();
-
-        let after = self
-            .policy_on::<B>(&self.device)
-            .distribution(tb.obs.clone());
-        let kl = to_host(self.comm.mean(after.kl_from(&tb.dist_old)))[0];
-        // the switch's diagnostics exist for APO and PAPO only
-        let terms_after = matches!(objective, Objective::Apo(_) | Objective::Papo { .. })
-            .then(|| objective.evaluate(&after, &tb));
-        Ok(UpdateReport {
-            loss_pi: -to_host(terms.objective)[0],
-            mean_surr: to_host(terms.mean_surr)[0],
-            mean_variance: scalar(terms.mean_variance),
-            variance_mean: scalar(terms.variance_mean),
-            kl,
-            entropy,
-            loss_v: value_report.loss_before,
-            line_search,
-            rejections,
-            bias: terms_after.as_ref().and_then(|t| scalar(t.bias.clone())),
-            min_j_sq_on: terms_after
-                .and_then(|t| scalar(t.min_j_sq_on))
-                .map(|on| on > 0.5),
-            proximal,
-            multipliers: self.multipliers,
-            policy_update_s,
-            value_update_s,
-        })
+        report.loss_v = value_report.loss_before;
+        report.value_update_s = start.elapsed().as_secs_f64();
     }
 }

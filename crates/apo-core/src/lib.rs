@@ -112,6 +112,7 @@ pub mod distribution;
 pub mod fisher;
 pub mod flat;
 mod host_net;
+mod host_proximal;
 pub mod hvp;
 pub mod inference;
 pub mod kernels;

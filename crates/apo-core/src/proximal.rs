@@ -10,6 +10,7 @@ use rand::seq::SliceRandom;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::distribution::DistParams;
 use crate::flat::to_host;
 use crate::objective::vmpo::VmpoTerms;
 use crate::objective::{Multipliers, Objective};
@@ -118,22 +119,6 @@ pub struct ProximalReport {
     pub ratio_deviation: Option<f64>,
 }
 
-/// The (mini)batches of one pass: `batch` split into shuffled chunks of `size` rows, or
-/// the whole batch when `size` is `None` or not smaller than the batch.
-fn split<AB: AutodiffBackend>(
-    batch: &TensorBatch<AB>,
-    size: Option<usize>,
-    rng: &mut impl Rng,
-) -> Vec<TensorBatch<AB>> {
-    match minibatches(batch.len(), size, rng) {
-        None => vec![batch.clone()],
-        Some(idx) => idx
-            .chunks(size.unwrap_or(1))
-            .map(|c| batch.select(c))
-            .collect(),
-    }
-}
-
 /// One pass's minibatches of a batch of `n` rows: `None` for the whole batch in order
 /// (`size` absent, 0 or ≥ `n`), else the rows `0..n` shuffled by `rng`, to be cut into chunks
 /// of `size`.
@@ -145,6 +130,50 @@ pub(crate) fn minibatches(n: usize, size: Option<usize>, rng: &mut impl Rng) -> 
     })
 }
 
+/// Where a proximal update's policy passes run: Burn's graph of the policy module
+/// ([`BurnEngine`]), or the host kernels (`crate::host_proximal`).
+pub(crate) trait Engine<AB: AutodiffBackend> {
+    /// π_θ's distributions on the states of `part`, the rows `rows` of the update's batch
+    /// (`None`: the whole batch, in order), as a graph whose loss's gradients
+    /// [`Engine::step`] takes.
+    fn distribution(&mut self, part: &TensorBatch<AB>, rows: Option<&[usize]>) -> DistParams<AB>;
+
+    /// One Adam step at learning rate `lr` down `grads`, the gradients of a loss of the last
+    /// [`Engine::distribution`] (with several ranks, summed over them first).
+    fn step(&mut self, grads: AB::Gradients, part: &TensorBatch<AB>, lr: f64);
+}
+
+/// The policy module on Burn's autodiff, stepped by Burn's optimizer `O`.
+pub(crate) struct BurnEngine<'o, P, O> {
+    /// The policy (`None` only during a step).
+    pub(crate) policy: Option<P>,
+    /// Its optimizer.
+    pub(crate) optim: &'o mut O,
+}
+
+impl<AB, P, O> Engine<AB> for BurnEngine<'_, P, O>
+where
+    AB: AutodiffBackend,
+    P: Policy<AB> + AutodiffModule<AB>,
+    O: Optimizer<P, AB>,
+{
+    fn distribution(&mut self, part: &TensorBatch<AB>, _: Option<&[usize]>) -> DistParams<AB> {
+        match &self.policy {
+            Some(policy) => policy.distribution(part.obs.clone()),
+            None => unreachable!("the policy is only taken out during a step"),
+        }
+    }
+
+    fn step(&mut self, grads: AB::Gradients, part: &TensorBatch<AB>, lr: f64) {
+        if let Some(policy) = self.policy.take() {
+            let grads = part
+                .comm
+                .sum_gradients(&policy, GradientsParams::from_grads(grads, &policy));
+            self.policy = Some(self.optim.step(lr, policy, grads));
+        }
+    }
+}
+
 /// Up to `step.update.iters` passes of Adam ascending `objective` on `batch` (with several
 /// ranks, on the union of their batches: gradients summed, stops on global means), stopping early
 /// before a step when the approximate KL `mean(logp_old − logp)` exceeds `target_kl` or the
@@ -154,12 +183,12 @@ pub(crate) fn minibatches(n: usize, size: Option<usize>, rng: &mut impl Rng) -> 
 /// them by their own Adam (at the same learning rate) down the loss's gradient, with
 /// [`Objective::Vmpo`]'s η and α replaced by theirs.
 pub fn proximal_update<AB, P, O>(
-    mut policy: P,
+    policy: P,
     optim: &mut O,
     objective: &Objective,
     batch: &TensorBatch<AB>,
     step: ProximalStep<'_>,
-    mut multipliers: Option<&mut Multipliers>,
+    multipliers: Option<&mut Multipliers>,
     rng: &mut impl Rng,
 ) -> (P, ProximalReport)
 where
@@ -167,6 +196,26 @@ where
     P: Policy<AB> + AutodiffModule<AB>,
     O: Optimizer<P, AB>,
 {
+    let mut engine = BurnEngine {
+        policy: Some(policy),
+        optim,
+    };
+    let report = run_proximal(&mut engine, objective, batch, step, multipliers, rng);
+    match engine.policy {
+        Some(policy) => (policy, report),
+        None => unreachable!("the policy is only taken out during a step"),
+    }
+}
+
+/// [`proximal_update`]'s passes with the policy's passes on `engine`.
+pub(crate) fn run_proximal<AB: AutodiffBackend>(
+    engine: &mut impl Engine<AB>,
+    objective: &Objective,
+    batch: &TensorBatch<AB>,
+    step: ProximalStep<'_>,
+    mut multipliers: Option<&mut Multipliers>,
+    rng: &mut impl Rng,
+) -> ProximalReport {
     let config = step.update;
     let mut report = ProximalReport {
         steps: 0,
@@ -174,50 +223,60 @@ where
         approx_kl: 0.0,
         ratio_deviation: None,
     };
+    // one (mini)batch's step; `false` once an early stop fires
+    let mut one = |part: &TensorBatch<AB>, rows: Option<&[usize]>, report: &mut ProximalReport| {
+        let dist = engine.distribution(part, rows);
+        if config.target_kl.is_some() || step.max_ratio_deviation.is_some() {
+            let log_ratio = dist.log_prob(part.actions.clone()).detach() - part.logp_old.clone();
+            if let Some(target) = config.target_kl {
+                report.approx_kl = to_host(part.comm.mean(log_ratio.clone().neg()))[0];
+                report.stopped_early |= report.approx_kl > target;
+            }
+            if let Some(max) = step.max_ratio_deviation {
+                let deviation = to_host(part.comm.mean(log_ratio.exp().sub_scalar(1.0).abs()))[0];
+                report.ratio_deviation = Some(deviation);
+                report.stopped_early |= deviation > max;
+            }
+            if report.stopped_early {
+                return false;
+            }
+        }
+        let grads = match (objective, multipliers.as_deref_mut()) {
+            (Objective::Vmpo(params), Some(m)) => {
+                let (eta, alpha) = m.leaves::<AB>(&part.adv.device());
+                let logp = dist.log_prob(part.actions.clone());
+                let terms = VmpoTerms::new(&dist, logp, part, params, eta.clone(), alpha.clone());
+                let grads = terms.loss().backward();
+                let grad = |t: Tensor<AB, 1>| t.grad(&grads).map_or(0.0, |g| to_host(g)[0]);
+                let (grad_eta, grad_alpha) = terms
+                    .multiplier_grads
+                    .unwrap_or_else(|| (grad(eta), grad(alpha)));
+                m.step(grad_eta, grad_alpha, config.lr);
+                grads
+            }
+            _ => objective.evaluate(&dist, part).objective.neg().backward(),
+        };
+        engine.step(grads, part, config.lr);
+        report.steps += 1;
+        true
+    };
     for _ in 0..config.iters {
-        for part in &split(batch, config.minibatch_size, rng) {
-            let dist = policy.distribution(part.obs.clone());
-            if config.target_kl.is_some() || step.max_ratio_deviation.is_some() {
-                let log_ratio =
-                    dist.log_prob(part.actions.clone()).detach() - part.logp_old.clone();
-                if let Some(target) = config.target_kl {
-                    report.approx_kl = to_host(part.comm.mean(log_ratio.clone().neg()))[0];
-                    report.stopped_early |= report.approx_kl > target;
-                }
-                if let Some(max) = step.max_ratio_deviation {
-                    let deviation =
-                        to_host(part.comm.mean(log_ratio.exp().sub_scalar(1.0).abs()))[0];
-                    report.ratio_deviation = Some(deviation);
-                    report.stopped_early |= deviation > max;
-                }
-                if report.stopped_early {
-                    return (policy, report);
+        match minibatches(batch.len(), config.minibatch_size, rng) {
+            None => {
+                if !one(batch, None, &mut report) {
+                    return report;
                 }
             }
-            let grads = match (objective, multipliers.as_deref_mut()) {
-                (Objective::Vmpo(params), Some(m)) => {
-                    let (eta, alpha) = m.leaves::<AB>(&part.adv.device());
-                    let logp = dist.log_prob(part.actions.clone());
-                    let terms =
-                        VmpoTerms::new(&dist, logp, part, params, eta.clone(), alpha.clone());
-                    let grads = terms.loss().backward();
-                    let grad = |t: Tensor<AB, 1>| t.grad(&grads).map_or(0.0, |g| to_host(g)[0]);
-                    let (grad_eta, grad_alpha) = terms
-                        .multiplier_grads
-                        .unwrap_or_else(|| (grad(eta), grad(alpha)));
-                    m.step(grad_eta, grad_alpha, config.lr);
-                    grads
+            Some(idx) => {
+                for rows in idx.chunks(config.minibatch_size.unwrap_or(1)) {
+                    if !one(&batch.select(rows), Some(rows), &mut report) {
+                        return report;
+                    }
                 }
-                _ => objective.evaluate(&dist, part).objective.neg().backward(),
-            };
-            let grads = part
-                .comm
-                .sum_gradients(&policy, GradientsParams::from_grads(grads, &policy));
-            policy = optim.step(config.lr, policy, grads);
-            report.steps += 1;
+            }
         }
     }
-    (policy, report)
+    report
 }
 
 /// What a value update did.
@@ -248,14 +307,22 @@ where
     };
     let loss_before = to_host(mse(&value, batch).detach())[0];
     let mut loss_after = loss_before;
+    let mut one = |value: ValueNet<AB>, part: &TensorBatch<AB>| {
+        let loss = mse(&value, part);
+        loss_after = to_host(loss.clone().detach())[0];
+        let grads = part
+            .comm
+            .sum_gradients(&value, GradientsParams::from_grads(loss.backward(), &value));
+        optim.step(config.lr, value, grads)
+    };
     for _ in 0..config.iters {
-        for part in &split(batch, config.minibatch_size, rng) {
-            let loss = mse(&value, part);
-            loss_after = to_host(loss.clone().detach())[0];
-            let grads = part
-                .comm
-                .sum_gradients(&value, GradientsParams::from_grads(loss.backward(), &value));
-            value = optim.step(config.lr, value, grads);
+        match minibatches(batch.len(), config.minibatch_size, rng) {
+            None => value = one(value, batch),
+            Some(idx) => {
+                for rows in idx.chunks(config.minibatch_size.unwrap_or(1)) {
+                    value = one(value, &batch.select(rows));
+                }
+            }
         }
     }
     (

@@ -8,15 +8,12 @@
 //! resume. Only the rounding differs (tests compare the two).
 
 use burn::backend::Autodiff;
-use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
 use burn::optim::adaptor::OptimizerAdaptor;
-use burn::optim::record::AdaptorRecord;
-use burn::optim::{Adam, AdamState, AdaptiveMomentumState, Optimizer};
+use burn::optim::Adam;
 use burn::tensor::backend::Backend;
-use burn::tensor::{Tensor, TensorData};
 use rand::Rng;
 
-use crate::adam::{ADAM_BETA_1, ADAM_BETA_2, ADAM_EPSILON};
+use crate::adam::HostAdam;
 use crate::buffer::Batch;
 use crate::collective::Comm;
 use crate::host_net::HostNet;
@@ -25,18 +22,13 @@ use crate::value::ValueNet;
 
 type Ad<B> = Autodiff<B>;
 type ValueAdam<B> = OptimizerAdaptor<Adam, ValueNet<Ad<B>>, Ad<B>>;
-type Record<B> = <ValueAdam<B> as Optimizer<ValueNet<Ad<B>>, Ad<B>>>::Record;
 
 /// A [`HostNet`] with one output trained by Adam on the mean squared error.
 #[derive(Debug, Clone)]
 pub(crate) struct HostRegression {
     net: HostNet,
-    /// Adam's first moment, `[num_params]`.
-    moment_1: Vec<f32>,
-    /// Adam's second moment, `[num_params]`.
-    moment_2: Vec<f32>,
-    /// Adam steps taken.
-    time: usize,
+    /// Adam's state, `[num_params]`.
+    adam: HostAdam,
     /// A minibatch's gathered rows, `[n, input]` and `[n]`.
     gathered: (Vec<f32>, Vec<f32>),
     /// The ranks whose rows, together, are the regression's data.
@@ -45,20 +37,15 @@ pub(crate) struct HostRegression {
 
 impl HostRegression {
     /// From per-layer `(weight [input, output] row-major, bias [output])` and the Adam state
-    /// `(moment_1, moment_2, steps)` in the same flat order (`None`: no step taken yet).
-    /// `None` if the shapes do not chain or the last layer has more than one output.
-    pub(crate) fn new(
-        layers: &[(Vec<f32>, Vec<f32>)],
-        adam: Option<(Vec<f32>, Vec<f32>, usize)>,
-    ) -> Option<Self> {
+    /// in the same flat order (`None`: no step taken yet). `None` if the shapes do not chain,
+    /// the last layer has more than one output or the state is of another size.
+    pub(crate) fn new(layers: &[(Vec<f32>, Vec<f32>)], adam: Option<HostAdam>) -> Option<Self> {
         let net = HostNet::new(layers).filter(|net| net.output() == 1)?;
         let n = net.num_params();
-        let (moment_1, moment_2, time) = adam.unwrap_or((vec![0.0; n], vec![0.0; n], 0));
-        (moment_1.len() == n && moment_2.len() == n).then_some(Self {
+        let adam = adam.unwrap_or_else(|| HostAdam::new(n));
+        (adam.len() == n && adam.moment_2.len() == n).then_some(Self {
             net,
-            moment_1,
-            moment_2,
-            time,
+            adam,
             gathered: (Vec::new(), Vec::new()),
             comm: Comm::default(),
         })
@@ -118,25 +105,8 @@ impl HostRegression {
             }
         }
         let loss = loss / rows.max(1) as f64;
-        self.time += 1;
-        // Burn's Adam, operation for operation: θ −= lr · m·c / (√v + ε·√(1 − β₂ᵗ)),
-        // c = √(1 − β₂ᵗ) / (1 − β₁ᵗ)
-        let t = i32::try_from(self.time).unwrap_or(i32::MAX);
-        let correction_2 = (1.0 - ADAM_BETA_2.powi(t)).sqrt();
-        let factor = correction_2 / (1.0 - ADAM_BETA_1.powi(t));
-        let epsilon = ADAM_EPSILON * correction_2;
-        for (((p, g), m), v) in self
-            .net
-            .params
-            .iter_mut()
-            .zip(&self.net.grads)
-            .zip(&mut self.moment_1)
-            .zip(&mut self.moment_2)
-        {
-            *m = *m * ADAM_BETA_1 + g * (1.0 - ADAM_BETA_1);
-            *v = *v * ADAM_BETA_2 + g * g * (1.0 - ADAM_BETA_2);
-            *p -= (*m * factor / (v.sqrt() + epsilon)) * lr;
-        }
+        self.adam
+            .step(self.net.params.iter_mut(), &self.net.grads, lr);
         loss
     }
 
@@ -167,81 +137,6 @@ fn squared_error(out: &[f32], y: &[f32]) -> f64 {
         .sum()
 }
 
-/// Reads each parameter's Adam moments and step count out of an optimizer record, in
-/// visiting order.
-struct ReadMoments<B: Backend> {
-    record: Record<B>,
-    moment_1: Vec<f32>,
-    moment_2: Vec<f32>,
-    time: Option<usize>,
-}
-
-impl<B: Backend> ModuleVisitor<Ad<B>> for ReadMoments<B> {
-    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<Ad<B>, D>>) {
-        let n = param.lazy_shape().num_elements();
-        match self.record.remove(&param.id) {
-            Some(record) => {
-                let state: AdamState<B, D> = record.into_state::<D>();
-                let momentum = state.momentum;
-                self.time = Some(self.time.unwrap_or(0).max(momentum.time));
-                self.moment_1
-                    .extend(momentum.moment_1.into_data().iter::<f32>());
-                self.moment_2
-                    .extend(momentum.moment_2.into_data().iter::<f32>());
-            }
-            None => {
-                self.moment_1.extend(std::iter::repeat_n(0.0, n));
-                self.moment_2.extend(std::iter::repeat_n(0.0, n));
-            }
-        }
-    }
-}
-
-/// Writes host parameters back into the module (ids and autodiff settings kept) and
-/// builds the matching optimizer record.
-struct WriteBack<'a, B: Backend> {
-    fit: &'a HostRegression,
-    offset: usize,
-    record: Record<B>,
-}
-
-impl<B: Backend> WriteBack<'_, B> {
-    fn tensor<const D: usize, B2: Backend>(
-        values: &[f32],
-        dims: [usize; D],
-        device: &B2::Device,
-    ) -> Tensor<B2, D> {
-        Tensor::from_data(TensorData::new(values.to_vec(), dims), device)
-    }
-}
-
-impl<B: Backend> ModuleMapper<Ad<B>> for WriteBack<'_, B> {
-    fn map_float<const D: usize>(
-        &mut self,
-        param: Param<Tensor<Ad<B>, D>>,
-    ) -> Param<Tensor<Ad<B>, D>> {
-        let shape = param.lazy_shape();
-        let dims: [usize; D] = std::array::from_fn(|i| shape[i]);
-        let range = self.offset..self.offset + shape.num_elements();
-        self.offset = range.end;
-        let device = param.lazy_device();
-        if self.fit.time > 0 {
-            let momentum = AdaptiveMomentumState::new(
-                self.fit.time,
-                Self::tensor::<D, B>(&self.fit.moment_1[range.clone()], dims, &device),
-                Self::tensor::<D, B>(&self.fit.moment_2[range.clone()], dims, &device),
-            );
-            self.record.insert(
-                param.id,
-                AdaptorRecord::from_state(AdamState::new(momentum)),
-            );
-        }
-        let value = Self::tensor::<D, Ad<B>>(&self.fit.net.params[range], dims, &device);
-        let id = param.id;
-        param.transform_for_load(value, id)
-    }
-}
-
 /// [`crate::proximal::value_update`] on the host: `config.iters` passes of Adam descending
 /// `mean((V(s) − ret)²)` over `batch` (`obs: [n, observation_dim]`, `ret: [n]`), minibatches
 /// drawn from `rng` exactly as the Burn path draws them. Returns the updated network and
@@ -255,15 +150,9 @@ pub(crate) fn host_value_update<B: Backend>(
     comm: &Comm,
     rng: &mut impl Rng,
 ) -> Option<(ValueNet<Ad<B>>, ValueAdam<B>, ValueReport)> {
-    let mut read = ReadMoments::<B> {
-        record: optim.to_record(),
-        moment_1: Vec::new(),
-        moment_2: Vec::new(),
-        time: None,
-    };
-    value.visit(&mut read);
-    let adam = read.time.map(|t| (read.moment_1, read.moment_2, t));
-    let mut fit = HostRegression::new(&value.net.host_layers(), adam)?.with_comm(comm.clone());
+    let adam = HostAdam::read(value, optim);
+    let mut fit =
+        HostRegression::new(&value.net.host_layers(), Some(adam))?.with_comm(comm.clone());
     if fit.net.input() * batch.len != batch.obs.len() || batch.ret.len() != batch.len {
         return None;
     }
@@ -281,13 +170,9 @@ pub(crate) fn host_value_update<B: Backend>(
             }
         }
     }
-    let mut write = WriteBack::<B> {
-        fit: &fit,
-        offset: 0,
-        record: Record::<B>::default(),
-    };
-    let value = value.clone().map(&mut write);
-    let optim = optim.clone().load_record(write.record);
+    let (value, optim) = fit
+        .adam
+        .write(value.clone(), optim.clone(), &fit.net.params);
     Some((
         value,
         optim,
@@ -330,7 +215,7 @@ mod tests {
         }
         let last = reg.loss(&x, &y);
         assert!(last < 0.2 * first, "{first} → {last}");
-        assert_eq!(reg.time, 300);
+        assert_eq!(reg.adam.time, 300);
 
         let rows = [3usize, 17, 0, 39, 8];
         let mut a = HostRegression::new(&layers, None).expect("shapes chain");
@@ -348,7 +233,7 @@ mod tests {
     #[test]
     fn refuses_several_outputs_and_mismatched_moments() {
         let (mut layers, _, _) = problem(1);
-        assert!(HostRegression::new(&layers, Some((vec![0.0; 3], vec![0.0; 3], 1))).is_none());
+        assert!(HostRegression::new(&layers, Some(HostAdam::new(3))).is_none());
         layers[2] = (vec![0.0; 16], vec![0.0; 2]);
         assert!(HostRegression::new(&layers, None).is_none());
     }

@@ -209,3 +209,177 @@ fn host_value_fit_matches_burn_full_batch_and_minibatches() {
         }
     }
 }
+
+/// A random batch of `n` transitions for `action` (one-hot actions and logits for a
+/// categorical), `obs_dim` observations.
+fn random_batch_for(
+    action: apo_core::ActionKind,
+    n: usize,
+    obs_dim: usize,
+    seed: u64,
+) -> apo_core::Batch {
+    use rand::{Rng, SeedableRng};
+    let mut batch = random_batch(n, obs_dim, seed);
+    if let apo_core::ActionKind::Discrete { n: k } = action {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed + 100);
+        batch.actions = (0..n)
+            .flat_map(|_| {
+                let a = rng.random_range(0..k);
+                (0..k).map(move |i| if i == a { 1.0 } else { 0.0 })
+            })
+            .collect();
+        batch.dist = vec![0.0; n * k];
+    }
+    batch
+}
+
+/// `batch` as collected by `learner`'s current policy π_j: its distributions and the
+/// log-probabilities of the batch's actions under them.
+fn on_policy(
+    batch: &mut apo_core::Batch,
+    learner: &apo_core::Learner<F32, apo_core::MlpPolicyConfig>,
+    action: apo_core::ActionKind,
+) {
+    use apo_core::{DistParams, Policy, TensorBatch};
+    let tb = TensorBatch::<F32>::new(batch, action, &device());
+    let dist = learner
+        .policy_on::<F32>(&device())
+        .distribution(tb.obs.clone());
+    let host =
+        |t: burn::tensor::Tensor<F32, 2>| -> Vec<f32> { t.into_data().iter::<f32>().collect() };
+    batch.logp = dist
+        .log_prob(tb.actions.clone())
+        .into_data()
+        .iter::<f32>()
+        .collect();
+    batch.dist = match dist {
+        DistParams::Gaussian { mean, log_std } => {
+            host(burn::tensor::Tensor::cat(vec![mean, log_std], 1))
+        }
+        DistParams::Categorical { logits } => host(logits),
+    };
+}
+
+/// The policy's Adam update of `config`.
+fn policy_update(config: &mut apo_core::AlgoConfig) -> &mut apo_core::ProximalConfig {
+    use apo_core::AlgoConfig::*;
+    match config {
+        Papo(c) => &mut c.policy_update,
+        Ppo(c) => &mut c.policy_update,
+        A2c(c) => &mut c.policy_update,
+        Espo(c) => &mut c.policy_update,
+        AlphaPpo(c) => &mut c.policy_update,
+        Vmpo(c) => &mut c.policy_update,
+        Apo(_) | Trpo(_) => unreachable!("trust-region algorithms have no Adam update"),
+    }
+}
+
+/// Every proximal algorithm's policy update on the host kernels against Burn's graph: two
+/// learners from one seed, one updated on the host in the epochs marked `Host` in `fits` (and
+/// through Burn in the others), the other always through Burn, on Gaussian and categorical
+/// policies, full-batch and with minibatches. After each epoch the policies must agree to f32
+/// rounding, the reports must have taken the same steps and stops, and V-MPO's multipliers
+/// must agree.
+#[test]
+fn host_proximal_updates_match_burn_for_every_algorithm() {
+    use apo_core::Kernels::{Backend, Host};
+    use apo_core::{ActionKind, AlgoConfig, Algorithm, Learner, MlpPolicyConfig, ValueConfig};
+    use rand::SeedableRng;
+    let (obs_dim, hidden) = (5, vec![16, 16]);
+    let fits = [Host, Host, Backend, Host];
+    let mut worst = 0.0f64;
+    for algo in Algorithm::ALL
+        .iter()
+        .copied()
+        .filter(|a| !matches!(a, Algorithm::Apo | Algorithm::Trpo))
+    {
+        for action in [
+            ActionKind::Continuous { dim: 2 },
+            ActionKind::Discrete { n: 3 },
+        ] {
+            for minibatch in [None, Some(96)] {
+                let mut config = AlgoConfig::paper_defaults(algo);
+                let update = policy_update(&mut config);
+                update.iters = 6;
+                update.minibatch_size = minibatch;
+                let make = || {
+                    Learner::<F32, _>::new(
+                        MlpPolicyConfig {
+                            observation_dim: obs_dim,
+                            hidden: hidden.clone(),
+                            action,
+                            init_log_std: -0.5,
+                        },
+                        action,
+                        &ValueConfig {
+                            observation_dim: obs_dim,
+                            hidden: hidden.clone(),
+                        },
+                        config.clone(),
+                        &device(),
+                        11,
+                    )
+                    .expect("valid config")
+                };
+                let (mut a, mut b) = (make(), make());
+                let (mut rng_a, mut rng_b) = (
+                    rand::rngs::StdRng::seed_from_u64(5),
+                    rand::rngs::StdRng::seed_from_u64(5),
+                );
+                let case = format!("{algo} {action:?} minibatch {minibatch:?}");
+                let mut moved = 0.0f64;
+                let start = b.policy_params();
+                for (epoch, &fit) in fits.iter().enumerate() {
+                    let mut batch = random_batch_for(action, 256, obs_dim, epoch as u64);
+                    on_policy(&mut batch, &b, action);
+                    a.set_kernels(fit);
+                    b.set_kernels(Backend);
+                    let ra = a.update(&batch, &mut rng_a).expect("the MLP fits");
+                    let rb = b.update(&batch, &mut rng_b).expect("the MLP fits");
+                    let (pa, pb) = (
+                        ra.proximal.expect("proximal"),
+                        rb.proximal.expect("proximal"),
+                    );
+                    assert_eq!(
+                        (pa.steps, pa.stopped_early),
+                        (pb.steps, pb.stopped_early),
+                        "{case}, epoch {epoch}: the updates took different steps"
+                    );
+                    assert!(
+                        (pa.approx_kl - pb.approx_kl).abs() <= 1e-5,
+                        "{case}: {pa:?} vs {pb:?}"
+                    );
+                    let diff = a
+                        .policy_params()
+                        .iter()
+                        .zip(b.policy_params())
+                        .map(|(p, q)| (p - q).abs())
+                        .fold(0.0, f64::max);
+                    assert!(
+                        diff <= 1e-6,
+                        "{case}, epoch {epoch}: policies differ by {diff}"
+                    );
+                    worst = worst.max(diff);
+                    if let (Some(ma), Some(mb)) = (ra.multipliers, rb.multipliers) {
+                        assert!(
+                            (ma.eta - mb.eta).abs() <= 1e-5 && (ma.alpha - mb.alpha).abs() <= 1e-5,
+                            "{case}: multipliers {ma:?} vs {mb:?}"
+                        );
+                    }
+                }
+                moved = b
+                    .policy_params()
+                    .iter()
+                    .zip(&start)
+                    .map(|(p, q)| (p - q).abs())
+                    .fold(moved, f64::max);
+                // the comparison means something only if the updates moved the policy
+                assert!(
+                    moved > 100.0 * worst.max(1e-7),
+                    "{case}: the policy moved by {moved} only"
+                );
+            }
+        }
+    }
+    println!("largest host vs Burn policy difference: {worst:.2e}");
+}

@@ -125,6 +125,12 @@ pub struct TrainConfig {
     /// The evaluation statistic that picks the best checkpoint (`checkpoints/best`).
     #[serde(default)]
     pub eval_best: EvalMetric,
+    /// Overlap each epoch's value fit with the next epoch's rollout (the default): the
+    /// rollout acts with the new policy while the critic is fitted, then the new batch's values
+    /// come from the fitted critic in one batched call. The results are bit-identical to the
+    /// sequential epoch (`false`); only the time columns change.
+    #[serde(default = "yes")]
+    pub pipeline: bool,
     /// The algorithm's hyperparameters.
     pub algo: AlgoConfig,
 }
@@ -153,6 +159,7 @@ impl TrainConfig {
             eval_episodes: 10,
             eval_deterministic: true,
             eval_best: EvalMetric::Mean,
+            pipeline: true,
             algo: AlgoConfig::paper_defaults(algo),
         }
     }

@@ -77,7 +77,6 @@ pub struct Collector {
     env_actions: Vec<f32>,
     out: Vec<VecStep>,
     act: ActBuffers,
-    values: Vec<f32>,
     buffers: Vec<RolloutBuffer>,
     normalizer: Option<RunningMeanStd>,
     steps_per_env: usize,
@@ -85,6 +84,9 @@ pub struct Collector {
     /// The ranks of a data-parallel run (advantages normalized and observation statistics
     /// merged over all of them).
     comm: Comm,
+    /// With several ranks and a normalizer, during a rollout: the statistics at its start and
+    /// this rank's additions, merged over the ranks by [`Collector::finish`].
+    merge: Option<(RunningMeanStd, RunningMeanStd)>,
 }
 
 impl Collector {
@@ -116,7 +118,6 @@ impl Collector {
             env_actions: Vec::with_capacity(n * envs.act_dim()),
             out: vec![VecStep::default(); n],
             act: ActBuffers::default(),
-            values: Vec::with_capacity(n),
             buffers: (0..n)
                 .map(|_| RolloutBuffer::new(layout, gamma, lambda, steps_per_env))
                 .collect(),
@@ -125,6 +126,7 @@ impl Collector {
             bootstrap_time_limit: true,
             envs,
             comm: Comm::default(),
+            merge: None,
         }
     }
 
@@ -180,6 +182,22 @@ impl Collector {
         stop: &AtomicBool,
         progress: &mut dyn FnMut(u64),
     ) -> Option<Rollout> {
+        let mut rollout = self.collect_steps(actor, seed, stop, progress)?;
+        self.finish(&mut rollout, actor);
+        Some(rollout)
+    }
+
+    /// The rollout's steps with `actor`'s policy (its critic is not called), without the
+    /// batch: the paths are ended but their values and advantages wait for
+    /// [`Collector::finish`]. Makes no collective call, so it may run while another thread
+    /// updates the critic. `None` when `stop` was raised.
+    pub(crate) fn collect_steps(
+        &mut self,
+        actor: &mut dyn Act,
+        seed: u64,
+        stop: &AtomicBool,
+        progress: &mut dyn FnMut(u64),
+    ) -> Option<Rollout> {
         let n = self.envs.num_envs();
         let obs_dim = self.envs.obs_dim();
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 1));
@@ -196,8 +214,7 @@ impl Collector {
             steps: 0,
         };
         let mut row = vec![0.0f32; obs_dim];
-        // with several ranks: the statistics at the epoch's start and this rank's additions
-        let mut merge = (self.comm.is_distributed())
+        self.merge = (self.comm.is_distributed())
             .then(|| {
                 self.normalizer
                     .as_ref()
@@ -206,6 +223,7 @@ impl Collector {
             .flatten();
         for t in 0..self.steps_per_env {
             if stop.load(Ordering::Relaxed) {
+                self.discard();
                 return None;
             }
             if t % PROGRESS_EVERY == 0 {
@@ -214,14 +232,12 @@ impl Collector {
             if let Some(rms) = &mut self.normalizer {
                 rms.update(&self.obs, n);
             }
-            if let Some((_, added)) = &mut merge {
+            if let Some((_, added)) = &mut self.merge {
                 added.update(&self.obs, n);
             }
             let mut obs_norm = std::mem::take(&mut self.obs_norm);
             self.normalized(&self.obs, &mut obs_norm);
             actor.act(&obs_norm, n, false, &mut rng, &mut self.act);
-            self.values.clear();
-            self.values.extend_from_slice(actor.values(&obs_norm, n));
             self.env_actions.clear();
             self.env_actions.extend_from_slice(&self.act.env_actions);
             self.envs
@@ -230,12 +246,13 @@ impl Collector {
             let (aw, dw) = (self.act.actions.len() / n, self.act.dist.len() / n);
             for i in 0..n {
                 let step = self.out[i];
+                // V(s_t) comes later, from `finish`
                 self.buffers[i].store(
                     &obs_norm[i * obs_dim..(i + 1) * obs_dim],
                     &self.act.actions[i * aw..(i + 1) * aw],
                     self.act.logp[i],
                     &self.act.dist[i * dw..(i + 1) * dw],
-                    self.values[i],
+                    0.0,
                     step.reward as f32,
                 );
                 ep_ret[i] += step.reward;
@@ -243,18 +260,16 @@ impl Collector {
                 if !step.done() {
                     continue;
                 }
-                let last_value =
-                    if step.terminated || step.info.unstable || !self.bootstrap_time_limit {
-                        0.0
-                    } else {
-                        let final_obs = self
-                            .envs
-                            .final_obs(i)
-                            .unwrap_or(&self.obs[i * obs_dim..(i + 1) * obs_dim]);
-                        self.normalized(final_obs, &mut row);
-                        actor.values(&row, 1)[0]
-                    };
-                self.buffers[i].finish_path(last_value);
+                if step.terminated || step.info.unstable || !self.bootstrap_time_limit {
+                    self.buffers[i].end_path(None);
+                } else {
+                    let final_obs = self
+                        .envs
+                        .final_obs(i)
+                        .unwrap_or(&self.obs[i * obs_dim..(i + 1) * obs_dim]);
+                    self.normalized(final_obs, &mut row);
+                    self.buffers[i].end_path(Some(&row));
+                }
                 if step.info.unstable {
                     rollout.unstable += 1;
                 } else {
@@ -273,15 +288,41 @@ impl Collector {
         for i in 0..n {
             if self.buffers[i].path_len() > 0 {
                 self.normalized(&self.obs[i * obs_dim..(i + 1) * obs_dim], &mut row);
-                let last_value = actor.values(&row, 1)[0];
-                self.buffers[i].finish_path(last_value);
+                self.buffers[i].end_path(Some(&row));
             }
         }
+        Some(rollout)
+    }
+
+    /// Completes a rollout of [`Collector::collect_steps`]: `V(s_t)` of every step and the
+    /// bootstrap values from `actor`'s critic (one batched call per environment), the
+    /// advantages and rewards-to-go, the batch (advantages normalized over every rank's), and,
+    /// with several ranks, the observation statistics merged over them.
+    pub(crate) fn finish(&mut self, rollout: &mut Rollout, actor: &mut dyn Act) {
+        let mut critic = |obs: &[f32], n: usize, out: &mut Vec<f32>| {
+            out.clear();
+            out.extend_from_slice(actor.values(obs, n));
+        };
+        for buffer in &mut self.buffers {
+            buffer.finish_paths(&mut critic);
+        }
         rollout.batch = RolloutBuffer::take_all_over(&mut self.buffers, &self.comm);
-        if let Some((base, added)) = merge {
+        if let Some((base, added)) = self.merge.take() {
             self.normalizer = Some(merge_ranks(&self.comm, base, &added));
         }
-        Some(rollout)
+    }
+
+    /// Drops a rollout stopped mid-way: the buffers are emptied for the next one.
+    pub(crate) fn discard(&mut self) {
+        self.merge = None;
+        for buffer in &mut self.buffers {
+            buffer.end_path(None);
+            buffer.finish_paths(&mut |_, n, out| {
+                out.clear();
+                out.resize(n, 0.0);
+            });
+            let _ = buffer.take();
+        }
     }
 }
 

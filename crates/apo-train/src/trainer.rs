@@ -69,6 +69,12 @@ pub struct EpochReport {
     pub update: UpdateReport,
 }
 
+/// A rollout collected ahead, during the previous epoch's value fit, with the seconds it took.
+struct Prefetched {
+    rollout: crate::rollout::Rollout,
+    seconds: f64,
+}
+
 /// Trains a policy of family `F` with a learner on backend `B` (a plain backend such as
 /// `NdArray` or `Wgpu`: the learner adds `Autodiff` itself), acting through `A` (by default
 /// [`BurnActor<F>`], which runs any policy module; [`Trainer::mlp`] uses the faster
@@ -89,6 +95,8 @@ where
     comm: Comm,
     /// The evaluation episodes, when the run evaluates.
     evaluator: Option<Evaluator>,
+    /// The next epoch's rollout, collected during this epoch's value fit (`pipeline`).
+    prefetched: Option<Prefetched>,
 }
 
 impl<B: Backend> Trainer<B, MlpPolicyConfig, HostActor> {
@@ -212,6 +220,7 @@ where
             started: (Instant::now(), 0.0),
             comm: Comm::default(),
             evaluator,
+            prefetched: None,
             config,
             learner,
             value,
@@ -300,6 +309,7 @@ where
             });
         }
         self.collector.set_normalizer(state.normalizer.clone());
+        self.prefetched = None;
         self.started = (Instant::now(), state.elapsed_s);
         self.state = state;
         self.actor = A::from_learner(&self.learner, &self.value);
@@ -316,6 +326,15 @@ where
     /// epoch has run, or when `stop` was raised during the rollout (the epoch is then dropped:
     /// the counters stay at the last completed epoch).
     ///
+    /// With `pipeline` (the default), the value fit runs on another thread while this thread
+    /// collects the next epoch's rollout with the new policy; that rollout's values and
+    /// advantages come from the fitted critic once both are done, and the next call starts
+    /// from it. The results are the sequential epoch's, bit for bit: the rollout never calls
+    /// the critic ([`Collector`]'s values are one batched call after the steps), the update's
+    /// random stream is the same, and the networks, counters and observation statistics a
+    /// checkpoint takes after this call are the sequential epoch's (a stop raised during the
+    /// next rollout drops that rollout, not this epoch).
+    ///
     /// # Errors
     /// [`TrainError::NonFinite`] when the update produced a non-finite loss, KL, entropy or
     /// parameter (the counters stay at the last completed epoch).
@@ -328,52 +347,102 @@ where
             return Ok(None);
         }
         let epoch_start = Instant::now();
-        let seed = derive_seed(self.config.seed, self.state.epoch as u64, 0);
-        // rank 0 draws a one-process run's streams; the others their own
-        let rank = self.comm.rank() as u64;
-        let seed = if rank == 0 {
-            seed
-        } else {
-            derive_seed(seed, rank, 3)
-        };
+        let seed = self.epoch_seed(self.state.epoch);
         let steps_before = self.state.env_steps;
         let ranks = self.comm.size() as u64;
-        let rollout = self
-            .collector
-            .collect(&mut self.actor, seed, stop, &mut |steps| {
-                progress(steps_before + steps * ranks)
-            });
-        // a stop on any rank drops the epoch on all of them
-        let mut stopped = [f64::from(u8::from(rollout.is_none()))];
-        self.comm.max(&mut stopped);
-        let Some(mut rollout) = rollout.filter(|_| stopped[0] == 0.0) else {
-            return Ok(None);
+        let Prefetched {
+            rollout,
+            seconds: rollout_s,
+        } = match self.prefetched.take() {
+            Some(prefetched) => prefetched,
+            None => {
+                let rollout =
+                    self.collector
+                        .collect_steps(&mut self.actor, seed, stop, &mut |steps| {
+                            progress(steps_before + steps * ranks)
+                        });
+                let Some(rollout) = self.finish_rollout(rollout) else {
+                    return Ok(None);
+                };
+                Prefetched {
+                    rollout,
+                    seconds: epoch_start.elapsed().as_secs_f64(),
+                }
+            }
         };
-        let rollout_s = epoch_start.elapsed().as_secs_f64();
-        if self.comm.is_distributed() {
-            gather_episodes(&self.comm, &mut rollout);
-        }
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
-        let update = self.learner.update(&rollout.batch, &mut rng)?;
-        if let Some(what) = non_finite(&update, &self.learner) {
-            return Err(TrainError::NonFinite {
-                epoch: self.state.epoch + 1,
-                what,
+        let mut update = self.learner.update_policy(&rollout.batch, &mut rng)?;
+        // the observation statistics after this epoch's rollout (the next one moves them)
+        let normalizer = self.collector.normalizer().cloned();
+        if self.config.pipeline && self.state.epoch + 1 < self.config.epochs {
+            // the new policy; the critic is not called during the rollout's steps
+            self.actor = A::from_learner(&self.learner, &self.value);
+            let next_seed = self.epoch_seed(self.state.epoch + 1);
+            let next_steps = steps_before + rollout.steps;
+            let (learner, collector, actor) =
+                (&mut self.learner, &mut self.collector, &mut self.actor);
+            let (batch, report) = (&rollout.batch, &mut update);
+            let start = Instant::now();
+            let (next, next_s) = std::thread::scope(|scope| {
+                let fit = scope.spawn(move || learner.update_value(batch, &mut rng, report));
+                let next = collector.collect_steps(actor, next_seed, stop, &mut |steps| {
+                    progress(next_steps + steps * ranks)
+                });
+                let next_s = start.elapsed().as_secs_f64();
+                if let Err(panic) = fit.join() {
+                    std::panic::resume_unwind(panic);
+                }
+                (next, next_s)
             });
+            if let Some(what) = non_finite(&update, &self.learner) {
+                if next.is_some() {
+                    self.collector.discard();
+                }
+                self.collector.set_normalizer(normalizer);
+                return Err(TrainError::NonFinite {
+                    epoch: self.state.epoch + 1,
+                    what,
+                });
+            }
+            // the fitted critic gives the next rollout's values
+            self.actor = A::from_learner(&self.learner, &self.value);
+            let finish_start = Instant::now();
+            match self.finish_rollout(next) {
+                Some(rollout) => {
+                    self.prefetched = Some(Prefetched {
+                        rollout,
+                        seconds: next_s + finish_start.elapsed().as_secs_f64(),
+                    })
+                }
+                // a stop during the next rollout drops it, and its observation statistics
+                None => self.collector.set_normalizer(normalizer.clone()),
+            }
+        } else {
+            self.learner
+                .update_value(&rollout.batch, &mut rng, &mut update);
+            if let Some(what) = non_finite(&update, &self.learner) {
+                return Err(TrainError::NonFinite {
+                    epoch: self.state.epoch + 1,
+                    what,
+                });
+            }
+            self.actor = A::from_learner(&self.learner, &self.value);
         }
-        self.actor = A::from_learner(&self.learner, &self.value);
 
         let state = &mut self.state;
         state.epoch += 1;
         state.env_steps += rollout.steps;
         state.elapsed_s = self.started.1 + self.started.0.elapsed().as_secs_f64();
-        state.normalizer = self.collector.normalizer().cloned();
+        state.normalizer = normalizer;
         let stats = EpisodeStats::from_episodes(
             &rollout.returns,
             &rollout.lengths,
             self.config.algo.probability_factor(),
         );
-        let steps_per_s = rollout.steps as f64 / epoch_start.elapsed().as_secs_f64().max(1e-9);
+        // with the pipeline, this call's time is the policy step, the value fit and the next
+        // rollout's steps together: the epoch's share of the run's wall time
+        let wall_s = epoch_start.elapsed().as_secs_f64();
+        let steps_per_s = rollout.steps as f64 / wall_s.max(1e-9);
         let mut row = ProgressRow::new(
             state.epoch,
             state.env_steps,
@@ -393,7 +462,7 @@ where
                 let start = Instant::now();
                 let evaluation = evaluator.evaluate(
                     &mut self.actor,
-                    self.collector.normalizer(),
+                    self.state.normalizer.as_ref(),
                     self.config.algo.probability_factor(),
                 );
                 row.set_evaluation(
@@ -404,6 +473,40 @@ where
             }
         }
         Ok(Some(EpochReport { row, update }))
+    }
+
+    /// The seed of epoch `epoch`'s streams: rank 0 draws a one-process run's, the others
+    /// their own.
+    fn epoch_seed(&self, epoch: usize) -> u64 {
+        let seed = derive_seed(self.config.seed, epoch as u64, 0);
+        match self.comm.rank() as u64 {
+            0 => seed,
+            rank => derive_seed(seed, rank, 3),
+        }
+    }
+
+    /// Agrees over the ranks on whether the rollout's steps were stopped (a stop on any rank
+    /// drops the rollout on all of them), then completes it with the actor's critic and, with
+    /// several ranks, gathers every rank's episodes.
+    fn finish_rollout(
+        &mut self,
+        steps: Option<crate::rollout::Rollout>,
+    ) -> Option<crate::rollout::Rollout> {
+        let mut stopped = [f64::from(u8::from(steps.is_none()))];
+        self.comm.max(&mut stopped);
+        let mut rollout = match steps {
+            Some(rollout) if stopped[0] == 0.0 => rollout,
+            Some(_) => {
+                self.collector.discard();
+                return None;
+            }
+            None => return None,
+        };
+        self.collector.finish(&mut rollout, &mut self.actor);
+        if self.comm.is_distributed() {
+            gather_episodes(&self.comm, &mut rollout);
+        }
+        Some(rollout)
     }
 
     /// The checkpoint schedule after the last completed epoch: one is due every

@@ -195,6 +195,132 @@ fn rows(config: TrainConfig) -> Vec<apo_train::ProgressRow> {
     rows
 }
 
+/// A run of `config` with the environments on `threads` threads, from epoch `from` of
+/// `resume` (a trainer to copy the networks, optimizers and counters from) when given: every
+/// epoch's row without its time columns, then the final policy and critic parameters.
+fn run_from(
+    config: TrainConfig,
+    threads: usize,
+    resume: Option<&Trainer<NdArray, MlpPolicyConfig, HostActor>>,
+) -> (Vec<apo_train::ProgressRow>, Vec<f64>, Vec<f64>) {
+    let mut trainer =
+        Trainer::<NdArray, _, _>::mlp(config, &Default::default(), threads).expect("valid");
+    if let Some(from) = resume {
+        let (policy, value) = from.learner().networks();
+        let (policy_optim, value_optim) = from.learner().optimizers();
+        let learner = trainer.learner_mut();
+        learner.restore(
+            policy.clone(),
+            value.clone(),
+            policy_optim.clone(),
+            value_optim.clone(),
+        );
+        if let Some(m) = from.learner().multipliers() {
+            learner.restore_multipliers(*m);
+        }
+        trainer
+            .restore(from.state().clone())
+            .expect("within the run");
+    }
+    let stop = AtomicBool::new(false);
+    let mut rows = Vec::new();
+    while let Some(epoch) = trainer.epoch(&stop, &mut |_| {}).expect("finite") {
+        rows.push(epoch.row.timeless());
+    }
+    let learner = trainer.learner();
+    (rows, learner.policy_params(), learner.value_params())
+}
+
+/// The pipelined epoch (the value fit on another thread while the next rollout runs) gives
+/// the sequential epoch's numbers bit for bit, for every algorithm, with normalized
+/// observations, minibatches, evaluation, 1 to 3 threads, and when resumed after any epoch.
+#[test]
+fn the_pipelined_epoch_is_the_sequential_epoch_bit_for_bit() {
+    use apo_core::AlgoConfig;
+    for &algo in Algorithm::ALL {
+        let env = if matches!(algo, Algorithm::Vmpo | Algorithm::Trpo | Algorithm::Espo) {
+            "CartPole-v1"
+        } else {
+            "Pendulum-v1"
+        };
+        let mut config = small(algo, env, 4, 300);
+        config.normalize_obs = true;
+        config.eval_every = 2;
+        config.eval_episodes = 2;
+        config.eval_deterministic = false;
+        // minibatches: the value fit draws from the update's random stream on its thread
+        match &mut config.algo {
+            AlgoConfig::Ppo(c) => {
+                c.value_update.minibatch_size = Some(64);
+                c.policy_update.minibatch_size = Some(64);
+            }
+            AlgoConfig::Apo(c) => c.value_update.minibatch_size = Some(100),
+            _ => {}
+        }
+        config.pipeline = false;
+        let sequential = run_from(config.clone(), 1, None);
+        assert_eq!(sequential.0.len(), 4);
+        config.pipeline = true;
+        for threads in [1, 2, 3] {
+            let pipelined = run_from(config.clone(), threads, None);
+            assert!(
+                pipelined == sequential,
+                "{algo} on {env}, {threads} threads: the pipelined run differs"
+            );
+        }
+    }
+    // resumed after any epoch: the checkpoint's networks, counters and statistics are the
+    // sequential run's, and the rollout collected ahead is not part of them
+    let mut config = small(Algorithm::Papo, "Pendulum-v1", 4, 300);
+    config.normalize_obs = true;
+    let whole = run_from(config.clone(), 2, None);
+    for done in 1..4 {
+        // `done` epochs of the same run, whose next rollout has already been collected
+        let mut first =
+            Trainer::<NdArray, _, _>::mlp(config.clone(), &Default::default(), 2).expect("valid");
+        let stop = AtomicBool::new(false);
+        for _ in 0..done {
+            first.epoch(&stop, &mut |_| {}).expect("finite");
+        }
+        let rest = run_from(config.clone(), 2, Some(&first));
+        assert_eq!(rest.0[..], whole.0[done..], "resumed after epoch {done}");
+        assert_eq!((&rest.1, &rest.2), (&whole.1, &whole.2));
+    }
+}
+
+/// A stop raised while the next epoch's rollout runs ahead drops that rollout only: the
+/// epoch in progress completes, and the run resumes from it as if never stopped.
+#[test]
+fn a_stop_during_the_rollout_ahead_keeps_the_epoch() {
+    use std::sync::atomic::Ordering;
+    let mut config = small(Algorithm::Ppo, "Pendulum-v1", 3, 300);
+    config.normalize_obs = true;
+    let whole = run_from(config.clone(), 1, None);
+    let mut trainer =
+        Trainer::<NdArray, _, _>::mlp(config.clone(), &Default::default(), 1).expect("valid");
+    let stop = AtomicBool::new(false);
+    let first = trainer
+        .epoch(&stop, &mut |_| {})
+        .expect("finite")
+        .expect("epoch 1");
+    assert_eq!(first.row.timeless(), whole.0[0]);
+    // epoch 2's steps were collected during epoch 1: raise the stop during epoch 3's
+    let mut calls = 0;
+    let second = trainer
+        .epoch(&stop, &mut |_| {
+            calls += 1;
+            stop.store(true, Ordering::Relaxed);
+        })
+        .expect("finite")
+        .expect("epoch 2 completes");
+    assert!(calls > 0, "the rollout ahead reports its progress");
+    assert_eq!(second.row.timeless(), whole.0[1]);
+    assert_eq!(trainer.state().epoch, 2);
+    let rest = run_from(config, 1, Some(&trainer));
+    assert_eq!(rest.0[..], whole.0[2..]);
+    assert_eq!((&rest.1, &rest.2), (&whole.1, &whole.2));
+}
+
 #[test]
 fn evaluation_changes_no_training_number_and_is_reproducible() {
     // normalized observations: the evaluation reads the statistics and must not update them

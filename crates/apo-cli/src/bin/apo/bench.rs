@@ -53,12 +53,15 @@ pub enum BenchCommand {
         /// Backend of the updates.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
         backend: BackendKind,
-        /// Where the Fisher-vector products and the value fit run.
+        /// Where the Fisher-vector products, the proximal policy steps and the value fit run.
         #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
         kernels: KernelsKind,
         /// Threads that step the environments (0: the cores available).
         #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
         threads: usize,
+        /// The sequential epoch: no overlap of the value fit with the next rollout.
+        #[arg(long)]
+        no_pipeline: bool,
     },
     /// Environment steps per second of one environment with random actions.
     Env {
@@ -159,6 +162,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             backend,
             kernels,
             threads,
+            no_pipeline,
         } => {
             let spec = apo_envs::registry::spec(&env)?;
             let mut config = RunConfig {
@@ -169,6 +173,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             config.train.steps_per_epoch = steps_per_epoch;
             config.train.epochs = epochs as usize;
             config.train.num_envs = num_envs;
+            config.train.pipeline = !no_pipeline;
             config.validate()?;
             config.check_memory(
                 spec.observation_dim,
@@ -178,16 +183,19 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 crate::quiet_wgpu();
             }
             let split = apo_cli::bench::epoch(&config, threads)?;
-            println!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend}");
-            println!("epoch  total_s  rollout_s  policy_s  value_s  other_s  steps_per_s");
+            println!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend} pipeline={}", !no_pipeline);
+            println!(
+                "epoch  total_s  rollout_s  policy_s  value_s  hidden_s  other_s  steps_per_s"
+            );
             for e in &split {
                 println!(
-                    "{:>5}  {:>7.3}  {:>9.3}  {:>8.3}  {:>7.3}  {:>7.3}  {:>11.0}",
+                    "{:>5}  {:>7.3}  {:>9.3}  {:>8.3}  {:>7.3}  {:>8.3}  {:>7.3}  {:>11.0}",
                     e.epoch,
                     e.total_s,
                     e.rollout_s,
                     e.policy_s,
                     e.value_s,
+                    e.hidden_s,
                     e.other_s,
                     e.steps_per_s
                 );
@@ -197,14 +205,17 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 apo_cli::bench::median_of(later.iter().map(f))
             };
             println!(
-                "median_epochs_2_on: total_s={:.3} rollout_s={:.3} policy_s={:.3} value_s={:.3} other_s={:.3} steps_per_s={:.0}",
+                "median_epochs_2_on: total_s={:.3} rollout_s={:.3} policy_s={:.3} value_s={:.3} hidden_s={:.3} other_s={:.3} steps_per_s={:.0} overlap={:.2}",
                 med(|e| e.total_s),
                 med(|e| e.rollout_s),
                 med(|e| e.policy_s),
                 med(|e| e.value_s),
+                med(|e| e.hidden_s),
                 med(|e| e.other_s),
-                med(|e| e.steps_per_s)
+                med(|e| e.steps_per_s),
+                med(|e| e.hidden_s / e.value_s.max(1e-12)),
             );
+            println!("(hidden_s: the time the epoch's parts overlapped, rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout)");
         }
         BenchCommand::Env {
             env,
