@@ -97,6 +97,10 @@ where
     evaluator: Option<Evaluator>,
     /// The next epoch's rollout, collected during this epoch's value fit (`pipeline`).
     prefetched: Option<Prefetched>,
+    /// The threads the pipelined value fit runs its parallel parts on: all of rayon's but one,
+    /// which is left to the rollout (made at the first pipelined epoch; `None` when it could
+    /// not be made, and the fit then shares rayon's global pool).
+    fit_pool: Option<Option<rayon::ThreadPool>>,
 }
 
 impl<B: Backend> Trainer<B, MlpPolicyConfig, HostActor> {
@@ -221,6 +225,7 @@ where
             comm: Comm::default(),
             evaluator,
             prefetched: None,
+            fit_pool: None,
             config,
             learner,
             value,
@@ -379,12 +384,26 @@ where
             self.actor = A::from_learner(&self.learner, &self.value);
             let next_seed = self.epoch_seed(self.state.epoch + 1);
             let next_steps = steps_before + rollout.steps;
+            let pool = self.fit_pool.get_or_insert_with(|| {
+                let threads = rayon::current_num_threads().saturating_sub(1).max(1);
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("apo-value-fit-{i}"))
+                    .build()
+                    .ok()
+            });
             let (learner, collector, actor) =
                 (&mut self.learner, &mut self.collector, &mut self.actor);
             let (batch, report) = (&rollout.batch, &mut update);
             let start = Instant::now();
             let (next, next_s) = std::thread::scope(|scope| {
-                let fit = scope.spawn(move || learner.update_value(batch, &mut rng, report));
+                let fit = scope.spawn(move || {
+                    let mut fit = || learner.update_value(batch, &mut rng, report);
+                    match pool {
+                        Some(pool) => pool.install(fit),
+                        None => fit(),
+                    }
+                });
                 let next = collector.collect_steps(actor, next_seed, stop, &mut |steps| {
                     progress(next_steps + steps * ranks)
                 });

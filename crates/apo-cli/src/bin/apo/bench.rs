@@ -213,7 +213,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 med(|e| e.hidden_s),
                 med(|e| e.other_s),
                 med(|e| e.steps_per_s),
-                med(|e| e.hidden_s / e.value_s.max(1e-12)),
+                med(|e| (e.hidden_s / e.value_s.max(1e-12)).min(1.0)),
             );
             println!("(hidden_s: the time the epoch's parts overlapped, rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout)");
         }
