@@ -4,7 +4,8 @@
 # name; the paper's algorithms keep their names, PAPO's robust cell is <env>-papo-robust), the
 # GUARD campaign's Goal_Point TRPO, PPO and PAPO runs beside them, then `apo report`.
 #   bash scripts/variants-report.sh [ABLATION] [OUT]   (defaults results/variants/ablation, /tmp/variants-report)
-# The held-out comparison's folder (results/variants/heldout) works too: its baselines keep their names.
+# The held-out comparison's folder (results/variants/heldout) works too: its baselines keep their
+# names, its robust-<algos> runs become <env>-<algo>-robust.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 src=${1:-results/variants/ablation}
@@ -20,7 +21,8 @@ for cell in "$src"/*/*/; do
     base=$(basename "$run")
     stem=${base%-s*}
     case $name in
-      trpo|papo|ppo|baselines) dest="$runs/$base" ;;
+      trpo|papo|ppo|baselines|baselines-*) dest="$runs/$base" ;;
+      robust-*) dest="$runs/$stem-robust-${base##*-}" ;;
       *) dest="$runs/$stem-${name#papo-}-${base##*-}" ;;
     esac
     mkdir -p "$dest"
