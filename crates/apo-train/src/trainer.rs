@@ -97,10 +97,13 @@ where
     evaluator: Option<Evaluator>,
     /// The next epoch's rollout, collected during this epoch's value fit (`pipeline`).
     prefetched: Option<Prefetched>,
-    /// The threads the pipelined value fit runs its parallel parts on: all of rayon's but one,
-    /// which is left to the rollout (made at the first pipelined epoch; `None` when it could
-    /// not be made, and the fit then shares rayon's global pool).
+    /// The threads the pipelined value fit runs its parallel parts on while the rollout is the
+    /// longer of the two: all of rayon's but one, which is left to the rollout (made at the
+    /// first pipelined epoch; `None` when it could not be made).
     fit_pool: Option<Option<rayon::ThreadPool>>,
+    /// Whether the last pipelined value fit outlasted its rollout: the next one then takes
+    /// all of rayon's threads (the results do not depend on the threads).
+    fit_outlasts: bool,
 }
 
 impl<B: Backend> Trainer<B, MlpPolicyConfig, HostActor> {
@@ -226,6 +229,7 @@ where
             evaluator,
             prefetched: None,
             fit_pool: None,
+            fit_outlasts: false,
             config,
             learner,
             value,
@@ -392,27 +396,30 @@ where
                     .build()
                     .ok()
             });
+            let pool = pool.as_ref().filter(|_| !self.fit_outlasts);
             let (learner, collector, actor) =
                 (&mut self.learner, &mut self.collector, &mut self.actor);
             let (batch, report) = (&rollout.batch, &mut update);
             let start = Instant::now();
-            let (next, next_s) = std::thread::scope(|scope| {
+            let (next, next_s, fit_s) = std::thread::scope(|scope| {
                 let fit = scope.spawn(move || {
                     let mut fit = || learner.update_value(batch, &mut rng, report);
                     match pool {
                         Some(pool) => pool.install(fit),
                         None => fit(),
                     }
+                    start.elapsed().as_secs_f64()
                 });
                 let next = collector.collect_steps(actor, next_seed, stop, &mut |steps| {
                     progress(next_steps + steps * ranks)
                 });
                 let next_s = start.elapsed().as_secs_f64();
-                if let Err(panic) = fit.join() {
-                    std::panic::resume_unwind(panic);
+                match fit.join() {
+                    Ok(fit_s) => (next, next_s, fit_s),
+                    Err(panic) => std::panic::resume_unwind(panic),
                 }
-                (next, next_s)
             });
+            self.fit_outlasts = fit_s > next_s;
             if let Some(what) = non_finite(&update, &self.learner) {
                 if next.is_some() {
                     self.collector.discard();
