@@ -32,7 +32,8 @@ impl fmt::Display for BackendKind {
     }
 }
 
-/// Where the Fisher-vector products and the value fit run (`kernels`).
+/// Where the Fisher-vector products, the proximal policy steps and the value fit run
+/// (`kernels`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum KernelsKind {
@@ -78,7 +79,7 @@ pub struct RunConfig {
     pub train: TrainConfig,
     /// Backend of the updates.
     pub backend: BackendKind,
-    /// Where the Fisher-vector products and the value fit run.
+    /// Where the Fisher-vector products, the proximal policy steps and the value fit run.
     pub kernels: KernelsKind,
 }
 

@@ -1,8 +1,8 @@
 //! Where an update's network passes run.
 //!
-//! The trust-region step's Fisher-vector products and the value fit are first-order passes
-//! through the built-in MLPs, repeated many times per epoch (10 conjugate-gradient products,
-//! 80 Adam steps). On a GPU backend Burn's graph is the fast way to run them. On a CPU
+//! The trust-region step's Fisher-vector products, the proximal algorithms' policy steps and
+//! the value fit are first-order passes through the built-in MLPs, repeated many times per
+//! epoch (10 conjugate-gradient products, up to 80 Adam steps each). On a GPU backend Burn's graph is the fast way to run them. On a CPU
 //! backend Burn runs each tensor op as its own pass over memory, and the host kernels of
 //! apo-core (matmuls plus one fused sweep per layer, `f32`) are several times faster
 //! (`docs/benchmarks.md`). Policies without a host form (your own [`crate::Policy`]) and
@@ -10,7 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Where the Fisher-vector products and the value fit run.
+/// Where the Fisher-vector products, the proximal policy steps and the value fit run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Kernels {

@@ -12,7 +12,7 @@
 //!   policy's forward-mode one, or a finite difference) and one backward pass: first
 //!   derivatives only, so `burn::nn` policies work;
 //! * [`proximal`] — Adam with early stopping (KL or ratio deviation), and the value update;
-//! * [`kernels`] — where the Fisher-vector products and the value fit run: Burn's graph, or
+//! * [`kernels`] — where the Fisher-vector products, the proximal policy steps and the value fit run: Burn's graph, or
 //!   fused host kernels;
 //! * [`metrics`] — per-epoch statistics, the bound `J − k·Var` and its confidence;
 //! * [`algorithm`] — one module per algorithm: its settings, defaults and policy step;
