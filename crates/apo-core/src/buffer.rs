@@ -224,7 +224,7 @@ impl RolloutBuffer {
     /// `[rows]`; it is called once for those paths' steps and once for their bootstrap
     /// observations. Then each path's `delta`, advantages and rewards-to-go are computed as
     /// [`RolloutBuffer::finish_path`] computes them.
-    pub fn finish_paths(&mut self, critic: &mut dyn FnMut(&[f32], usize, &mut Vec<f32>)) {
+    pub fn finish_paths(&mut self, mut critic: impl FnMut(&[f32], usize, &mut Vec<f32>)) {
         let Some(&(end, _)) = self.pending.last() else {
             return;
         };

@@ -62,7 +62,7 @@ impl<AB: AutodiffBackend> HostEngine<AB> {
         let fits = rest.len() == log_std.unwrap_or(0)
             && adam.len() == theta.len()
             && log_std.is_none_or(|dim| dim == net.output())
-            && obs.len() % net.input() == 0;
+            && obs.len().is_multiple_of(net.input());
         fits.then(|| Self {
             log_std: rest.iter().map(|&x| x as f32).collect(),
             gaussian: log_std.is_some(),

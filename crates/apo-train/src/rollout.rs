@@ -317,7 +317,7 @@ impl Collector {
         self.merge = None;
         for buffer in &mut self.buffers {
             buffer.end_path(None);
-            buffer.finish_paths(&mut |_, n, out| {
+            buffer.finish_paths(|_, n, out: &mut Vec<f32>| {
                 out.clear();
                 out.resize(n, 0.0);
             });
