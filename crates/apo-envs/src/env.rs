@@ -3,6 +3,7 @@
 //! Observations are written into a caller-owned `&mut [f32]` of length
 //! `observation_space().flat_dim()`, so the rollout loop allocates nothing per step.
 
+use crate::render::{Camera, Frame, RenderError};
 use crate::space::Space;
 
 /// An action passed to [`Env::step`].
@@ -63,6 +64,18 @@ pub trait Env: Send {
     /// Applies `action`, advances one step and writes the next observation into `obs`
     /// (`[observation_dim]`). After a step with `done()`, call [`Env::reset`] before stepping again.
     fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition;
+
+    /// Draws the current state into `frame` (its size is the picture's), seen from `camera`.
+    /// Rendering only reads the state: an episode rendered at every step plays exactly as one
+    /// that is not. Wrappers pass it through to the environment they wrap.
+    ///
+    /// # Errors
+    /// [`RenderError::Unsupported`] by default; the renderers' own errors (an unknown camera,
+    /// no headless OpenGL) otherwise.
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        let _ = (camera, frame);
+        Err(RenderError::Unsupported)
+    }
 }
 
 impl<E: Env + ?Sized> Env for Box<E> {
@@ -77,5 +90,8 @@ impl<E: Env + ?Sized> Env for Box<E> {
     }
     fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
         (**self).step(action, obs)
+    }
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        (**self).render(camera, frame)
     }
 }

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::env::{Action, Env, Transition};
 use crate::error::EnvError;
+use crate::render::{Camera, Frame, RenderError};
 use crate::space::Space;
 
 /// Ends episodes with `truncated = true` after `max_episode_steps` steps.
@@ -69,6 +70,9 @@ impl<E: Env> Env for TimeLimit<E> {
         }
         transition
     }
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        self.env.render(camera, frame)
+    }
 }
 
 /// Resets the wrapped environment with the same seed at every reset, whatever seed the
@@ -102,6 +106,9 @@ impl<E: Env> Env for FixedReset<E> {
 
     fn step(&mut self, action: Action<'_>, obs: &mut [f32]) -> Transition {
         self.env.step(action, obs)
+    }
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        self.env.render(camera, frame)
     }
 }
 
@@ -201,6 +208,9 @@ impl<E: Env> Env for RescaleAction<E> {
         let transition = self.env.step(Action::Continuous(&scratch), obs);
         self.scratch = scratch;
         transition
+    }
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        self.env.render(camera, frame)
     }
 }
 
@@ -473,5 +483,8 @@ impl<E: Env> Env for NormalizeObservation<E> {
         let transition = self.env.step(action, obs);
         self.process(obs);
         transition
+    }
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        self.env.render(camera, frame)
     }
 }

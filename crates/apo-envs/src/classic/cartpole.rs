@@ -4,6 +4,7 @@ use rand::Rng;
 
 use super::{discrete_action, symmetric_box, write_obs, Core};
 use crate::env::{Action, Env, StepInfo, Transition};
+use crate::render::{Camera, Frame, RenderError};
 use crate::rng::EnvRng;
 use crate::space::Space;
 
@@ -123,5 +124,9 @@ impl Env for CartPole {
             truncated: false,
             info: StepInfo::default(),
         }
+    }
+
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        super::draw::cartpole(self.core.state, camera, frame)
     }
 }

@@ -15,6 +15,7 @@
 
 mod acrobot;
 mod cartpole;
+mod draw;
 mod mountain_car;
 mod pendulum;
 

@@ -4,6 +4,7 @@ use rand::Rng;
 
 use super::{continuous_action, write_obs, Core};
 use crate::env::{Action, Env, StepInfo, Transition};
+use crate::render::{Camera, Frame, RenderError};
 use crate::rng::EnvRng;
 use crate::space::Space;
 
@@ -111,5 +112,15 @@ impl Env for MountainCarContinuous {
                 success: None,
             },
         }
+    }
+
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        super::draw::mountain_car(
+            self.core.state,
+            [MIN_POSITION, MAX_POSITION],
+            GOAL_POSITION,
+            camera,
+            frame,
+        )
     }
 }

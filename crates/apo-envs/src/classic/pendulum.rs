@@ -6,6 +6,7 @@ use rand::Rng;
 
 use super::{continuous_action, symmetric_box, write_obs, Core};
 use crate::env::{Action, Env, StepInfo, Transition};
+use crate::render::{Camera, Frame, RenderError};
 use crate::rng::EnvRng;
 use crate::space::Space;
 
@@ -113,5 +114,9 @@ impl Env for Pendulum {
                 success: None,
             },
         }
+    }
+
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        super::draw::pendulum(self.core.state, camera, frame)
     }
 }
