@@ -1,9 +1,10 @@
 //! Rendering an environment's state to an RGB picture ([`crate::Env::render`]).
 //!
 //! - The classic-control environments draw a 2D picture of their state ([`Canvas`]).
+//! - The MuJoCo suites (Gym, GUARD, hands) render with MuJoCo's own renderer on a headless
+//!   OpenGL context (EGL or OSMesa, opened at run time; `APO_GL=egl|osmesa` picks one).
 //! - Other environments implement [`crate::Env::render`] themselves; those without a
-//!   renderer return [`RenderError::Unsupported`] (for now the MuJoCo suites and the Atari
-//!   games, whose renderers are still to come).
+//!   renderer return [`RenderError::Unsupported`].
 //!
 //! Every renderer writes a [`Frame`] of the size the caller asks for; the caller owns the
 //! frame, so a video of many steps reuses one buffer.
@@ -120,7 +121,7 @@ impl fmt::Display for Camera {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RenderError {
     /// The environment has no renderer.
-    #[error("this environment has no renderer (the classic-control tasks have one)")]
+    #[error("this environment has no renderer")]
     Unsupported,
     /// A frame side is 0 or too large.
     #[error(
@@ -140,6 +141,20 @@ pub enum RenderError {
         /// The cameras the scene has (`track`, `free` and the model's named cameras).
         available: Vec<String>,
     },
+    /// No headless OpenGL context could be made.
+    #[error(
+        "no headless OpenGL for rendering (tried {tried}): {reason}; install Debian's libegl1 \
+         libgl1-mesa-dri (EGL) or libosmesa6 (OSMesa)"
+    )]
+    NoDisplay {
+        /// The platforms tried.
+        tried: String,
+        /// Why each failed.
+        reason: String,
+    },
+    /// The renderer failed.
+    #[error("rendering failed: {0}")]
+    Failed(String),
 }
 
 /// A 2D drawing surface for the classic-control pictures: a world rectangle mapped onto the

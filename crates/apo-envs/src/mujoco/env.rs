@@ -10,7 +10,9 @@ use rand_distr::StandardNormal;
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
 use super::physics::{default_physics, Physics};
+use super::render::{SceneRenderer, TrackView};
 use crate::env::{Action, Env, StepInfo, Transition};
+use crate::render::{Camera, Frame, RenderError};
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
 
@@ -103,6 +105,8 @@ pub trait Task: Sized + Send + 'static {
     /// Whether `cfrc_ext` must be computed after stepping (`mj_rnePostConstraint`, as
     /// Gymnasium does) because the observation or the reward reads it.
     const CONTACT_FORCES: bool = false;
+    /// How [`Camera::Track`] frames the task in [`Env::render`].
+    const TRACK: TrackView = TrackView::SIDE;
 
     /// Builds the task for `model`, looking up the named objects it needs.
     fn new(model: &Model) -> Result<Self, MujocoError>;
@@ -137,6 +141,8 @@ pub struct MujocoEnv<T: Task> {
     observation_space: Space,
     action_space: Space,
     dt: f64,
+    /// Made by the first [`Env::render`].
+    renderer: Option<SceneRenderer>,
 }
 
 impl<T: Task> std::fmt::Debug for MujocoEnv<T> {
@@ -210,6 +216,7 @@ impl<T: Task> MujocoEnv<T> {
                 high,
             },
             dt,
+            renderer: None,
         })
     }
 
@@ -310,6 +317,10 @@ impl<T: Task> Env for MujocoEnv<T> {
         });
         self.observe(obs);
         transition(outcome, obs)
+    }
+
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        SceneRenderer::render(&mut self.renderer, &mut self.data, camera, T::TRACK, &[], frame)
     }
 }
 

@@ -26,6 +26,9 @@ type Hook = Option<unsafe extern "C" fn(*const c_char)>;
 
 static API: OnceLock<Result<MujocoApi, MujocoError>> = OnceLock::new();
 
+/// The name the library was opened by (set once [`api`] succeeded).
+static OPENED: OnceLock<OsString> = OnceLock::new();
+
 /// The loaded library, opened and checked on first use.
 pub(crate) fn api() -> Result<&'static MujocoApi, MujocoError> {
     API.get_or_init(load).as_ref().map_err(Clone::clone)
@@ -58,7 +61,9 @@ fn load() -> Result<MujocoApi, MujocoError> {
                 continue;
             }
         };
-        return from_library(library, &tried);
+        let api = from_library(library, &tried)?;
+        let _ = OPENED.set(name.clone());
+        return Ok(api);
     }
     Err(MujocoError::Library { tried, reason })
 }
@@ -86,6 +91,21 @@ unsafe fn open(name: &OsStr) -> Result<libloading::Library, libloading::Error> {
         // SAFETY: guaranteed by the caller.
         unsafe { libloading::Library::new(name) }
     }
+}
+
+/// Another handle of the MuJoCo library the physics loaded (the same library: `dlopen` of
+/// an open file counts a reference), for the functions the bindings leave out (the renderer's).
+pub(crate) fn open_again() -> Result<libloading::Library, MujocoError> {
+    api()?;
+    let name = OPENED.get().ok_or_else(|| MujocoError::Library {
+        tried: String::new(),
+        reason: "the MuJoCo library is not open".into(),
+    })?;
+    // SAFETY: the library is already open and initialised; this only counts a reference.
+    unsafe { open(name) }.map_err(|err| MujocoError::Library {
+        tried: name.to_string_lossy().into_owned(),
+        reason: err.to_string(),
+    })
 }
 
 fn from_library(library: libloading::Library, tried: &str) -> Result<MujocoApi, MujocoError> {

@@ -622,6 +622,10 @@ impl PhysicsData for Mj2Data {
     fn warning_count(&self, warning: Warning) -> u64 {
         u64::try_from(self.raw().warning[warning_type(warning) as usize].number).unwrap_or(0)
     }
+
+    fn mj2_raw(&mut self) -> Option<(*const mjModel, *mut mjData)> {
+        Some((self.model.ptr(), self.ptr.as_ptr()))
+    }
 }
 
 impl Drop for Mj2Data {

@@ -27,6 +27,7 @@ mod error;
     clippy::all
 )]
 mod ffi;
+mod gl;
 pub mod guard;
 pub mod hand;
 mod library;
@@ -35,6 +36,7 @@ mod mj2;
 mod mj3;
 mod model;
 pub(crate) mod physics;
+mod render;
 pub mod tasks;
 
 pub use bench::{steps_per_second, vector_steps_per_second};
@@ -44,6 +46,7 @@ pub use library::{check_library, EXPECTED_VERSION, LIBRARY_ENV_VAR};
 pub use model::{ContactForce, Data, Dynamics, Model, ObjKind, Warning};
 pub(crate) use physics::with_physics;
 pub use physics::{default_physics, set_default_physics, Physics};
+pub use render::TrackView;
 
 use crate::env::Env;
 use crate::error::EnvError;

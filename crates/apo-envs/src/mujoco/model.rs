@@ -246,6 +246,14 @@ impl Data {
         Ok(Data { raw, model })
     }
 
+    /// The MuJoCo 2.2.2 model and data behind this data, for the renderer; `None` on other
+    /// physics. Valid while `self` is borrowed.
+    pub(crate) fn mj2_raw(
+        &mut self,
+    ) -> Option<(*const super::ffi::mjModel, *mut super::ffi::mjData)> {
+        self.raw.mj2_raw()
+    }
+
     /// The model this data simulates.
     pub fn model(&self) -> &Arc<Model> {
         &self.model

@@ -279,6 +279,12 @@ pub(crate) trait PhysicsData: Send + Sync {
     /// How many times `warning` fired since the last reset; 0 for a warning the backend's
     /// MuJoCo version does not have.
     fn warning_count(&self, warning: Warning) -> u64;
+
+    /// The MuJoCo 2.2.2 `mjModel` and `mjData` behind this data, for the renderer; `None` for
+    /// other backends. The pointers are valid while `self` is borrowed.
+    fn mj2_raw(&mut self) -> Option<(*const super::ffi::mjModel, *mut super::ffi::mjData)> {
+        None
+    }
 }
 
 /// The kinds of named model objects that can be looked up with [`Model::id`](super::Model::id).

@@ -7,6 +7,7 @@ use super::env::{uniform, ResetNoise, Sizes, StepContext, Task};
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
 use crate::rng::EnvRng;
+use super::render::TrackView;
 
 /// Writes consecutive values into an observation buffer.
 struct ObsWriter<'a> {
@@ -81,6 +82,7 @@ pub struct InvertedPendulum;
 
 impl Task for InvertedPendulum {
     const NAME: &'static str = "InvertedPendulum";
+    const TRACK: TrackView = TrackView { body: 0, distance: 2.5, azimuth: 90.0, elevation: -10.0, grid: false };
     const MJCF: &'static str = include_str!("../../assets/inverted_pendulum.xml");
     const SIZES: Sizes = Sizes {
         nq: 2,
@@ -126,6 +128,7 @@ pub struct InvertedDoublePendulum {
 
 impl Task for InvertedDoublePendulum {
     const NAME: &'static str = "InvertedDoublePendulum";
+    const TRACK: TrackView = TrackView { body: 0, distance: 3.5, azimuth: 90.0, elevation: -10.0, grid: false };
     const MJCF: &'static str = include_str!("../../assets/inverted_double_pendulum.xml");
     const SIZES: Sizes = Sizes {
         nq: 3,
@@ -192,6 +195,7 @@ impl Reacher {
 
 impl Task for Reacher {
     const NAME: &'static str = "Reacher";
+    const TRACK: TrackView = TrackView { body: 0, distance: 0.9, azimuth: 90.0, elevation: -70.0, grid: false };
     const MJCF: &'static str = include_str!("../../assets/reacher.xml");
     const SIZES: Sizes = Sizes {
         nq: 4,
@@ -253,6 +257,7 @@ pub struct Swimmer;
 
 impl Task for Swimmer {
     const NAME: &'static str = "Swimmer";
+    const TRACK: TrackView = TrackView { distance: 3.5, elevation: -55.0, ..TrackView::SIDE };
     const MJCF: &'static str = include_str!("../../assets/swimmer.xml");
     const SIZES: Sizes = Sizes {
         nq: 5,
@@ -332,6 +337,7 @@ impl Hopper {
 
 impl Task for Hopper {
     const NAME: &'static str = "Hopper";
+    const TRACK: TrackView = TrackView::side(4.0);
     const MJCF: &'static str = include_str!("../../assets/hopper.xml");
     const SIZES: Sizes = Sizes {
         nq: 6,
@@ -371,6 +377,7 @@ pub struct HalfCheetah;
 
 impl Task for HalfCheetah {
     const NAME: &'static str = "HalfCheetah";
+    const TRACK: TrackView = TrackView::side(4.0);
     const MJCF: &'static str = include_str!("../../assets/half_cheetah.xml");
     const SIZES: Sizes = Sizes {
         nq: 9,
@@ -425,6 +432,7 @@ impl Walker2d {
 
 impl Task for Walker2d {
     const NAME: &'static str = "Walker2d";
+    const TRACK: TrackView = TrackView::side(3.5);
     const MJCF: &'static str = include_str!("../../assets/walker2d.xml");
     const SIZES: Sizes = Sizes {
         nq: 9,
@@ -468,6 +476,7 @@ pub struct Ant {
 
 impl Task for Ant {
     const NAME: &'static str = "Ant";
+    const TRACK: TrackView = TrackView { distance: 5.0, elevation: -35.0, ..TrackView::SIDE };
     const MJCF: &'static str = include_str!("../../assets/ant.xml");
     const SIZES: Sizes = Sizes {
         nq: 15,
@@ -544,6 +553,7 @@ pub struct Humanoid;
 
 impl Task for Humanoid {
     const NAME: &'static str = "Humanoid";
+    const TRACK: TrackView = TrackView::side(4.0);
     const MJCF: &'static str = include_str!("../../assets/humanoid.xml");
     const SIZES: Sizes = HUMANOID_SIZES;
     const OBS_DIM: usize = HUMANOID_OBS;
@@ -582,6 +592,7 @@ pub struct HumanoidStandup;
 
 impl Task for HumanoidStandup {
     const NAME: &'static str = "HumanoidStandup";
+    const TRACK: TrackView = TrackView::side(4.0);
     const MJCF: &'static str = include_str!("../../assets/humanoid.xml");
     const SIZES: Sizes = HUMANOID_SIZES;
     const OBS_DIM: usize = HUMANOID_OBS;

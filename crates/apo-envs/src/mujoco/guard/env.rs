@@ -24,6 +24,8 @@ use crate::env::{Action, Env, Transition};
 use crate::mujoco::env::transition;
 use crate::mujoco::error::MujocoError;
 use crate::mujoco::model::{Data, Model, ObjKind};
+use crate::mujoco::render::{Decor, SceneRenderer, Shape, TrackView};
+use crate::render::{Camera, Frame, RenderError};
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
 
@@ -203,6 +205,8 @@ pub struct GuardEnv {
     placed: Vec<Placed>,
     observation_space: Space,
     action_space: Space,
+    /// Made by the first [`Env::render`].
+    renderer: Option<SceneRenderer>,
 }
 
 impl std::fmt::Debug for GuardEnv {
@@ -346,6 +350,7 @@ impl GuardEnv {
             placed: Vec::with_capacity(16),
             observation_space: Space::uniform_box(obs_dim, f32::NEG_INFINITY, f32::INFINITY),
             action_space: Space::uniform_box(robot.action_dim(), -1.0, 1.0),
+            renderer: None,
         })
     }
 
@@ -817,5 +822,48 @@ impl Env for GuardEnv {
         });
         self.observe(obs);
         transition(outcome, obs)
+    }
+
+    /// The scene with what the simulation does not hold as geoms: the goal (green), the 3D
+    /// hazards (blue) and the robbers (red), followed from above the robot.
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        let mut decor = Vec::with_capacity(1 + HAZARD3D_COUNT + ROBBER_COUNT);
+        if self.suite.task != TaskKind::Chase {
+            decor.push(if self.suite.robot.goal_3d() {
+                Decor {
+                    shape: Shape::Sphere,
+                    size: [GOAL_SIZE * 0.5, 0.0, 0.0],
+                    pos: self.goal,
+                    rgba: [0.2, 0.9, 0.3, 0.6],
+                }
+            } else {
+                Decor {
+                    shape: Shape::Cylinder,
+                    size: [GOAL_SIZE, 0.01, 0.0],
+                    pos: [self.goal[0], self.goal[1], 0.01],
+                    rgba: [0.2, 0.9, 0.3, 0.6],
+                }
+            });
+        }
+        decor.extend(self.hazards().iter().map(|&pos| Decor {
+            shape: Shape::Sphere,
+            size: [HAZARD3D_RADIUS, 0.0, 0.0],
+            pos,
+            rgba: [0.25, 0.35, 1.0, 0.45],
+        }));
+        decor.extend(self.robbers().iter().map(|&[x, y, _]| Decor {
+            shape: Shape::Sphere,
+            size: [ROBBER_SPACING / 2.0, 0.0, 0.0],
+            pos: [x, y, ROBBER_SPACING / 2.0],
+            rgba: [0.95, 0.2, 0.2, 0.8],
+        }));
+        let track = TrackView {
+            body: self.ids.robot,
+            distance: 6.0,
+            azimuth: 90.0,
+            elevation: -55.0,
+            grid: true,
+        };
+        SceneRenderer::render(&mut self.renderer, &mut self.data, camera, track, &decor, frame)
     }
 }

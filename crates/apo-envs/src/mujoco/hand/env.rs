@@ -18,6 +18,8 @@ use crate::env::{Action, Env, Transition};
 use crate::mujoco::env::{shared_model, transition};
 use crate::mujoco::error::MujocoError;
 use crate::mujoco::model::{Data, ObjKind};
+use crate::mujoco::render::{Decor, SceneRenderer, Shape, TrackView};
+use crate::render::{Camera, Frame, RenderError};
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
 
@@ -203,10 +205,14 @@ pub struct HandEnv {
     initial_goal: [f64; MAX_GOAL_DIM],
     /// The palm body's position at the start configuration (Reach's `palm_xpos`).
     palm_xpos: [f64; 3],
+    /// The palm body (the camera follows it).
+    palm: usize,
     /// The desired goal (`[goal_dim]`).
     goal: Vec<f64>,
     observation_space: Space,
     action_space: Space,
+    /// Made by the first [`Env::render`].
+    renderer: Option<SceneRenderer>,
 }
 
 impl std::fmt::Debug for HandEnv {
@@ -353,9 +359,11 @@ impl HandEnv {
             init_qpos,
             initial_goal: [0.0; MAX_GOAL_DIM],
             palm_xpos: [0.0; 3],
+            palm,
             goal: vec![0.0; task.goal_dim()],
             observation_space: Space::uniform_box(obs_dim, f32::NEG_INFINITY, f32::INFINITY),
             action_space: Space::uniform_box(ACTIONS, -1.0, 1.0),
+            renderer: None,
         };
         hand.restore_start();
         hand.data.forward();
@@ -766,6 +774,32 @@ impl Env for HandEnv {
             step.info.success = Some(self.is_success());
         }
         step
+    }
+
+    /// The hand; Reach's goal fingertip positions as small spheres (the manipulate tasks show
+    /// their goal pose with the model's `target` body).
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        let decor: Vec<Decor> = if self.task.manipulates() {
+            Vec::new()
+        } else {
+            self.goal
+                .chunks_exact(3)
+                .map(|p| Decor {
+                    shape: Shape::Sphere,
+                    size: [0.008, 0.0, 0.0],
+                    pos: [p[0], p[1], p[2]],
+                    rgba: [0.95, 0.2, 0.2, 0.8],
+                })
+                .collect()
+        };
+        let track = TrackView {
+            body: self.palm,
+            distance: 0.5,
+            azimuth: 55.0,
+            elevation: -25.0,
+            grid: false,
+        };
+        SceneRenderer::render(&mut self.renderer, &mut self.data, camera, track, &decor, frame)
     }
 }
 
