@@ -112,7 +112,9 @@ fn a_guard_scene_shows_its_goal_in_green() {
     let green = |f: &Frame| {
         f.rgb()
             .chunks_exact(3)
-            .filter(|p| p[1] > 120 && p[1] as u32 > p[0] as u32 + 40 && p[1] as u32 > p[2] as u32 + 40)
+            .filter(|p| {
+                p[1] > 120 && p[1] as u32 > p[0] as u32 + 40 && p[1] as u32 > p[2] as u32 + 40
+            })
             .count()
     };
     assert!(green(&frame) > 20, "{} green pixels", green(&frame));

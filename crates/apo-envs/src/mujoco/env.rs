@@ -320,7 +320,14 @@ impl<T: Task> Env for MujocoEnv<T> {
     }
 
     fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
-        SceneRenderer::render(&mut self.renderer, &mut self.data, camera, T::TRACK, &[], frame)
+        SceneRenderer::render(
+            &mut self.renderer,
+            &mut self.data,
+            camera,
+            T::TRACK,
+            &[],
+            frame,
+        )
     }
 }
 

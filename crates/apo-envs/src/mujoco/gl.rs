@@ -50,9 +50,11 @@ type QueryDevices = unsafe extern "C" fn(c_int, *mut *mut c_void, *mut c_int) ->
 /// The EGL functions used here (EGL 1.4 core plus two extensions).
 struct Egl {
     initialize: unsafe extern "C" fn(EglDisplay, *mut c_int, *mut c_int) -> c_uint,
-    choose_config: unsafe extern "C" fn(EglDisplay, *const i32, *mut EglConfig, c_int, *mut c_int) -> c_uint,
+    choose_config:
+        unsafe extern "C" fn(EglDisplay, *const i32, *mut EglConfig, c_int, *mut c_int) -> c_uint,
     bind_api: unsafe extern "C" fn(c_uint) -> c_uint,
-    create_context: unsafe extern "C" fn(EglDisplay, EglConfig, EglContext, *const i32) -> EglContext,
+    create_context:
+        unsafe extern "C" fn(EglDisplay, EglConfig, EglContext, *const i32) -> EglContext,
     create_pbuffer: unsafe extern "C" fn(EglDisplay, EglConfig, *const i32) -> EglSurface,
     make_current: unsafe extern "C" fn(EglDisplay, EglSurface, EglSurface, EglContext) -> c_uint,
     destroy_context: unsafe extern "C" fn(EglDisplay, EglContext) -> c_uint,
@@ -69,8 +71,17 @@ struct OsMesa {
 }
 
 enum Platform {
-    Egl { api: Egl, display: EglDisplay, context: EglContext, surface: EglSurface },
-    OsMesa { api: OsMesa, context: *mut c_void, buffer: Vec<u8> },
+    Egl {
+        api: Egl,
+        display: EglDisplay,
+        context: EglContext,
+        surface: EglSurface,
+    },
+    OsMesa {
+        api: OsMesa,
+        context: *mut c_void,
+        buffer: Vec<u8>,
+    },
 }
 
 /// An OpenGL context with an off-screen buffer of `width × height` pixels.
@@ -131,10 +142,17 @@ impl GlContext {
         // has `4 · width · height` bytes, which OSMesa needs for RGBA unsigned bytes.
         let ok = unsafe {
             match &mut self.platform {
-                Platform::Egl { api, display, context, surface } => {
-                    (api.make_current)(*display, *surface, *surface, *context) != 0
-                }
-                Platform::OsMesa { api, context, buffer } => {
+                Platform::Egl {
+                    api,
+                    display,
+                    context,
+                    surface,
+                } => (api.make_current)(*display, *surface, *surface, *context) != 0,
+                Platform::OsMesa {
+                    api,
+                    context,
+                    buffer,
+                } => {
                     (api.make_current)(
                         *context,
                         buffer.as_mut_ptr().cast(),
@@ -148,7 +166,9 @@ impl GlContext {
         if ok {
             Ok(())
         } else {
-            Err(RenderError::Failed("cannot make the OpenGL context current".into()))
+            Err(RenderError::Failed(
+                "cannot make the OpenGL context current".into(),
+            ))
         }
     }
 
@@ -157,7 +177,12 @@ impl GlContext {
         if let Platform::Egl { api, display, .. } = &self.platform {
             // SAFETY: releasing the current context of a live display.
             unsafe {
-                (api.make_current)(*display, std::ptr::null_mut(), std::ptr::null_mut(), std::ptr::null_mut());
+                (api.make_current)(
+                    *display,
+                    std::ptr::null_mut(),
+                    std::ptr::null_mut(),
+                    std::ptr::null_mut(),
+                );
             }
         }
     }
@@ -169,8 +194,18 @@ impl Drop for GlContext {
         // by the process's contexts and is not terminated.
         unsafe {
             match &self.platform {
-                Platform::Egl { api, display, context, surface } => {
-                    (api.make_current)(*display, std::ptr::null_mut(), std::ptr::null_mut(), std::ptr::null_mut());
+                Platform::Egl {
+                    api,
+                    display,
+                    context,
+                    surface,
+                } => {
+                    (api.make_current)(
+                        *display,
+                        std::ptr::null_mut(),
+                        std::ptr::null_mut(),
+                        std::ptr::null_mut(),
+                    );
                     (api.destroy_surface)(*display, *surface);
                     (api.destroy_context)(*display, *context);
                 }
@@ -186,7 +221,12 @@ impl Drop for GlContext {
 /// `T` must be the symbol's C type.
 unsafe fn symbol<T: Copy>(library: &libloading::Library, name: &[u8]) -> Result<T, String> {
     // SAFETY: guaranteed by the caller.
-    unsafe { library.get::<T>(name).map(|s| *s).map_err(|e| e.to_string()) }
+    unsafe {
+        library
+            .get::<T>(name)
+            .map(|s| *s)
+            .map_err(|e| e.to_string())
+    }
 }
 
 fn egl(width: u32, height: u32) -> Result<GlContext, String> {
@@ -224,10 +264,18 @@ fn egl(width: u32, height: u32) -> Result<GlContext, String> {
             let mut device = std::ptr::null_mut();
             let mut count = 0;
             if query(1, &mut device, &mut count) != 0 && count > 0 {
-                displays.push(platform_display(EGL_PLATFORM_DEVICE_EXT, device, std::ptr::null()));
+                displays.push(platform_display(
+                    EGL_PLATFORM_DEVICE_EXT,
+                    device,
+                    std::ptr::null(),
+                ));
             }
         }
-        displays.push(platform_display(EGL_PLATFORM_SURFACELESS_MESA, std::ptr::null_mut(), std::ptr::null()));
+        displays.push(platform_display(
+            EGL_PLATFORM_SURFACELESS_MESA,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+        ));
         let mut reason = String::from("no EGL display");
         for display in displays.into_iter().filter(|d| !d.is_null()) {
             let (mut major, mut minor) = (0, 0);
@@ -236,12 +284,28 @@ fn egl(width: u32, height: u32) -> Result<GlContext, String> {
                 continue;
             }
             let attributes = [
-                EGL_RED_SIZE, 8, EGL_GREEN_SIZE, 8, EGL_BLUE_SIZE, 8, EGL_ALPHA_SIZE, 8,
-                EGL_DEPTH_SIZE, 24, EGL_STENCIL_SIZE, 8, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT,
-                EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_NONE,
+                EGL_RED_SIZE,
+                8,
+                EGL_GREEN_SIZE,
+                8,
+                EGL_BLUE_SIZE,
+                8,
+                EGL_ALPHA_SIZE,
+                8,
+                EGL_DEPTH_SIZE,
+                24,
+                EGL_STENCIL_SIZE,
+                8,
+                EGL_RENDERABLE_TYPE,
+                EGL_OPENGL_BIT,
+                EGL_SURFACE_TYPE,
+                EGL_PBUFFER_BIT,
+                EGL_NONE,
             ];
             let (mut config, mut found) = (std::ptr::null_mut(), 0);
-            if (api.choose_config)(display, attributes.as_ptr(), &mut config, 1, &mut found) == 0 || found < 1 {
+            if (api.choose_config)(display, attributes.as_ptr(), &mut config, 1, &mut found) == 0
+                || found < 1
+            {
                 reason = "no EGL configuration with OpenGL and a pbuffer".into();
                 continue;
             }
@@ -249,7 +313,8 @@ fn egl(width: u32, height: u32) -> Result<GlContext, String> {
                 reason = "EGL has no desktop OpenGL".into();
                 continue;
             }
-            let context = (api.create_context)(display, config, std::ptr::null_mut(), [EGL_NONE].as_ptr());
+            let context =
+                (api.create_context)(display, config, std::ptr::null_mut(), [EGL_NONE].as_ptr());
             if context.is_null() {
                 reason = format!("eglCreateContext failed (error {:#x})", (api.get_error)());
                 continue;
@@ -257,12 +322,20 @@ fn egl(width: u32, height: u32) -> Result<GlContext, String> {
             let size = [EGL_WIDTH, width as i32, EGL_HEIGHT, height as i32, EGL_NONE];
             let surface = (api.create_pbuffer)(display, config, size.as_ptr());
             if surface.is_null() {
-                reason = format!("eglCreatePbufferSurface failed (error {:#x})", (api.get_error)());
+                reason = format!(
+                    "eglCreatePbufferSurface failed (error {:#x})",
+                    (api.get_error)()
+                );
                 (api.destroy_context)(display, context);
                 continue;
             }
             let mut gl = GlContext {
-                platform: Platform::Egl { api, display, context, surface },
+                platform: Platform::Egl {
+                    api,
+                    display,
+                    context,
+                    surface,
+                },
                 width,
                 height,
                 _library: library,
@@ -276,7 +349,8 @@ fn egl(width: u32, height: u32) -> Result<GlContext, String> {
 
 fn osmesa(width: u32, height: u32) -> Result<GlContext, String> {
     // SAFETY: opening libOSMesa runs its initialisers only.
-    let library = unsafe { libloading::Library::new("libOSMesa.so.8") }.map_err(|e| e.to_string())?;
+    let library =
+        unsafe { libloading::Library::new("libOSMesa.so.8") }.map_err(|e| e.to_string())?;
     // SAFETY: the types are the prototypes of GL/osmesa.h.
     let api = unsafe {
         OsMesa {
@@ -292,7 +366,11 @@ fn osmesa(width: u32, height: u32) -> Result<GlContext, String> {
     }
     let buffer = vec![0u8; 4 * width as usize * height as usize];
     let mut gl = GlContext {
-        platform: Platform::OsMesa { api, context, buffer },
+        platform: Platform::OsMesa {
+            api,
+            context,
+            buffer,
+        },
         width,
         height,
         _library: library,

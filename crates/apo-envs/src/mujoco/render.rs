@@ -188,7 +188,8 @@ struct RenderApi {
         c_int,
         *mut c_void,
     ),
-    init_geom: unsafe extern "C" fn(*mut c_void, c_int, *const f64, *const f64, *const f64, *const f32),
+    init_geom:
+        unsafe extern "C" fn(*mut c_void, c_int, *const f64, *const f64, *const f64, *const f32),
     default_context: unsafe extern "C" fn(*mut c_void),
     make_context: unsafe extern "C" fn(*const mjModel, *mut c_void, c_int),
     free_context: unsafe extern "C" fn(*mut c_void),
@@ -215,7 +216,12 @@ fn load() -> Result<RenderApi, String> {
     /// `T` must be the C type of the symbol.
     unsafe fn get<T: Copy>(library: &libloading::Library, name: &[u8]) -> Result<T, String> {
         // SAFETY: guaranteed by the caller.
-        unsafe { library.get::<T>(name).map(|s| *s).map_err(|e| e.to_string()) }
+        unsafe {
+            library
+                .get::<T>(name)
+                .map(|s| *s)
+                .map_err(|e| e.to_string())
+        }
     }
     // SAFETY: the types are the prototypes of MuJoCo 2.2.2's mujoco.h; the library is the one
     // whose version the physics checked.
@@ -257,7 +263,13 @@ impl Opaque {
         let bytes = self.0.len() * 8;
         if offset + std::mem::size_of::<T>() <= bytes {
             // SAFETY: in bounds (checked); unaligned write, so any offset is fine.
-            unsafe { self.ptr().cast::<u8>().add(offset).cast::<T>().write_unaligned(value) }
+            unsafe {
+                self.ptr()
+                    .cast::<u8>()
+                    .add(offset)
+                    .cast::<T>()
+                    .write_unaligned(value)
+            }
         }
     }
 
@@ -266,7 +278,13 @@ impl Opaque {
         let bytes = self.0.len() * 8;
         if offset + std::mem::size_of::<T>() <= bytes {
             // SAFETY: in bounds (checked); MuJoCo wrote a `T` there.
-            unsafe { self.ptr().cast::<u8>().add(offset).cast::<T>().read_unaligned() }
+            unsafe {
+                self.ptr()
+                    .cast::<u8>()
+                    .add(offset)
+                    .cast::<T>()
+                    .read_unaligned()
+            }
         } else {
             T::default()
         }
@@ -414,7 +432,12 @@ impl SceneRenderer {
             } else {
                 None
             };
-            self.add_decor(decor.iter().copied().chain(followed.into_iter().flat_map(grid)));
+            self.add_decor(
+                decor
+                    .iter()
+                    .copied()
+                    .chain(followed.into_iter().flat_map(grid)),
+            );
             let (width, height) = self.gl.size();
             let viewport = Rect {
                 left: 0,
@@ -423,7 +446,12 @@ impl SceneRenderer {
                 height: height as c_int,
             };
             (api.render)(viewport, self.scene.ptr(), self.context.ptr());
-            (api.read_pixels)(self.pixels.as_mut_ptr(), std::ptr::null_mut(), viewport, self.context.ptr());
+            (api.read_pixels)(
+                self.pixels.as_mut_ptr(),
+                std::ptr::null_mut(),
+                viewport,
+                self.context.ptr(),
+            );
         }
         self.gl.release();
         // MuJoCo's rows start at the bottom, the frame's at the top.

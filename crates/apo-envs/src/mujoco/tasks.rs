@@ -6,8 +6,8 @@
 use super::env::{uniform, ResetNoise, Sizes, StepContext, Task};
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
-use crate::rng::EnvRng;
 use super::render::TrackView;
+use crate::rng::EnvRng;
 
 /// Writes consecutive values into an observation buffer.
 struct ObsWriter<'a> {
@@ -82,7 +82,13 @@ pub struct InvertedPendulum;
 
 impl Task for InvertedPendulum {
     const NAME: &'static str = "InvertedPendulum";
-    const TRACK: TrackView = TrackView { body: 0, distance: 2.5, azimuth: 90.0, elevation: -10.0, grid: false };
+    const TRACK: TrackView = TrackView {
+        body: 0,
+        distance: 2.5,
+        azimuth: 90.0,
+        elevation: -10.0,
+        grid: false,
+    };
     const MJCF: &'static str = include_str!("../../assets/inverted_pendulum.xml");
     const SIZES: Sizes = Sizes {
         nq: 2,
@@ -128,7 +134,13 @@ pub struct InvertedDoublePendulum {
 
 impl Task for InvertedDoublePendulum {
     const NAME: &'static str = "InvertedDoublePendulum";
-    const TRACK: TrackView = TrackView { body: 0, distance: 3.5, azimuth: 90.0, elevation: -10.0, grid: false };
+    const TRACK: TrackView = TrackView {
+        body: 0,
+        distance: 3.5,
+        azimuth: 90.0,
+        elevation: -10.0,
+        grid: false,
+    };
     const MJCF: &'static str = include_str!("../../assets/inverted_double_pendulum.xml");
     const SIZES: Sizes = Sizes {
         nq: 3,
@@ -195,7 +207,13 @@ impl Reacher {
 
 impl Task for Reacher {
     const NAME: &'static str = "Reacher";
-    const TRACK: TrackView = TrackView { body: 0, distance: 0.9, azimuth: 90.0, elevation: -70.0, grid: false };
+    const TRACK: TrackView = TrackView {
+        body: 0,
+        distance: 0.9,
+        azimuth: 90.0,
+        elevation: -70.0,
+        grid: false,
+    };
     const MJCF: &'static str = include_str!("../../assets/reacher.xml");
     const SIZES: Sizes = Sizes {
         nq: 4,
@@ -257,7 +275,11 @@ pub struct Swimmer;
 
 impl Task for Swimmer {
     const NAME: &'static str = "Swimmer";
-    const TRACK: TrackView = TrackView { distance: 3.5, elevation: -55.0, ..TrackView::SIDE };
+    const TRACK: TrackView = TrackView {
+        distance: 3.5,
+        elevation: -55.0,
+        ..TrackView::SIDE
+    };
     const MJCF: &'static str = include_str!("../../assets/swimmer.xml");
     const SIZES: Sizes = Sizes {
         nq: 5,
@@ -476,7 +498,11 @@ pub struct Ant {
 
 impl Task for Ant {
     const NAME: &'static str = "Ant";
-    const TRACK: TrackView = TrackView { distance: 5.0, elevation: -35.0, ..TrackView::SIDE };
+    const TRACK: TrackView = TrackView {
+        distance: 5.0,
+        elevation: -35.0,
+        ..TrackView::SIDE
+    };
     const MJCF: &'static str = include_str!("../../assets/ant.xml");
     const SIZES: Sizes = Sizes {
         nq: 15,

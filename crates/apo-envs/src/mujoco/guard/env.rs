@@ -864,6 +864,13 @@ impl Env for GuardEnv {
             elevation: -55.0,
             grid: true,
         };
-        SceneRenderer::render(&mut self.renderer, &mut self.data, camera, track, &decor, frame)
+        SceneRenderer::render(
+            &mut self.renderer,
+            &mut self.data,
+            camera,
+            track,
+            &decor,
+            frame,
+        )
     }
 }

@@ -799,7 +799,14 @@ impl Env for HandEnv {
             elevation: -25.0,
             grid: false,
         };
-        SceneRenderer::render(&mut self.renderer, &mut self.data, camera, track, &decor, frame)
+        SceneRenderer::render(
+            &mut self.renderer,
+            &mut self.data,
+            camera,
+            track,
+            &decor,
+            frame,
+        )
     }
 }
 
