@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use apo_envs::{Action, Env, Space, Transition};
+use apo_envs::{Action, Camera, Env, Frame, RenderError, Space, Transition};
 
 use crate::{ale_seed, AtariError, Emulator};
 
@@ -26,6 +26,8 @@ pub struct AtariEnv {
     observation_space: Space,
     action_space: Space,
     ram: [u8; RAM_SIZE],
+    /// The last rendered screen, RGB.
+    screen: Vec<u8>,
 }
 
 impl AtariEnv {
@@ -41,6 +43,7 @@ impl AtariEnv {
             observation_space: Space::uniform_box(RAM_SIZE, 0.0, 255.0),
             action_space: Space::Discrete { n },
             ram: [0; RAM_SIZE],
+            screen: Vec::new(),
         })
     }
 
@@ -100,5 +103,34 @@ impl Env for AtariEnv {
             truncated: self.emulator.truncated(),
             info: Default::default(),
         }
+    }
+
+    /// The emulator's screen (160 × 210, the ALE's palette), scaled to the frame with the
+    /// nearest pixel: the picture Gymnasium's `render_mode="rgb_array"` gives, stretched.
+    /// Cameras: `track` and `free` (both the screen).
+    fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
+        if let Camera::Named(name) = camera {
+            return Err(RenderError::UnknownCamera {
+                name: name.clone(),
+                available: vec!["track".into(), "free".into()],
+            });
+        }
+        let (sw, sh) = self
+            .emulator
+            .screen_rgb(&mut self.screen)
+            .map_err(|e| RenderError::Failed(e.to_string()))?;
+        if sw == 0 || sh == 0 {
+            return Err(RenderError::Failed("the emulator has no screen".into()));
+        }
+        let (fw, fh) = (frame.width() as usize, frame.height() as usize);
+        let rgb = frame.rgb_mut();
+        for y in 0..fh {
+            let row = (y * sh / fh) * sw;
+            for x in 0..fw {
+                let from = 3 * (row + x * sw / fw);
+                rgb[3 * (y * fw + x)..][..3].copy_from_slice(&self.screen[from..from + 3]);
+            }
+        }
+        Ok(())
     }
 }

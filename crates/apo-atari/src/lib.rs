@@ -46,6 +46,8 @@ mod ffi {
         pub fn ale_reseed(a: *mut c_void, rom: *const c_char, seed: c_int) -> c_int;
         pub fn ale_ram(a: *mut c_void, out: *mut u8);
         pub fn ale_lives(a: *mut c_void) -> c_int;
+        pub fn ale_screen_size(a: *mut c_void, width: *mut c_int, height: *mut c_int);
+        pub fn ale_screen_rgb(a: *mut c_void, out: *mut u8) -> c_int;
         pub fn ale_episode_frame(a: *mut c_void) -> c_int;
     }
 }
@@ -171,6 +173,30 @@ impl Emulator {
     pub fn ram(&mut self, out: &mut [u8; 128]) {
         // SAFETY: `raw` is live; `out` holds the 128 bytes the shim copies.
         unsafe { ffi::ale_ram(self.raw, out.as_mut_ptr()) }
+    }
+
+    /// The screen's width and height in pixels (160 × 210).
+    pub fn screen_size(&mut self) -> (usize, usize) {
+        let (mut width, mut height) = (0, 0);
+        // SAFETY: `raw` is live; both are valid out-pointers.
+        unsafe { ffi::ale_screen_size(self.raw, &mut width, &mut height) };
+        (width.max(0) as usize, height.max(0) as usize)
+    }
+
+    /// The screen as RGB bytes, rows from the top, into `out` (resized to
+    /// 3 × width × height); returns the screen's width and height.
+    ///
+    /// # Errors
+    /// When the ALE reports an error.
+    pub fn screen_rgb(&mut self, out: &mut Vec<u8>) -> Result<(usize, usize), AtariError> {
+        let (width, height) = self.screen_size();
+        out.resize(3 * width * height, 0);
+        // SAFETY: `raw` is live; `out` holds the 3 × width × height bytes the shim copies.
+        let status = unsafe { ffi::ale_screen_rgb(self.raw, out.as_mut_ptr()) };
+        if status < 0 {
+            return Err(AtariError::Ale(last_error()));
+        }
+        Ok((width, height))
     }
 
     /// Lives left.

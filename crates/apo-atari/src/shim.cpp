@@ -4,6 +4,7 @@
 #include <cstring>
 #include <exception>
 #include <string>
+#include <vector>
 
 #include "ale/ale_interface.hpp"
 #include "ale/common/Log.hpp"
@@ -111,6 +112,26 @@ int ale_reseed(void* a, const char* rom, int seed) {
 void ale_ram(void* a, unsigned char* out) {
   const auto& ram = static_cast<ale::ALEInterface*>(a)->getRAM();
   std::memcpy(out, ram.array(), ram.size());
+}
+
+// The screen's width and height in pixels (160 × 210 on the Atari 2600).
+void ale_screen_size(void* a, int* width, int* height) {
+  const auto& screen = static_cast<ale::ALEInterface*>(a)->getScreen();
+  *width = static_cast<int>(screen.width());
+  *height = static_cast<int>(screen.height());
+}
+
+// Copies the screen as RGB bytes, rows from the top, into `out`, which holds
+// 3 × width × height bytes (ale_screen_size).
+int ale_screen_rgb(void* a, unsigned char* out) {
+  try {
+    thread_local std::vector<unsigned char> rgb;
+    static_cast<ale::ALEInterface*>(a)->getScreenRGB(rgb);
+    std::memcpy(out, rgb.data(), rgb.size());
+    return 0;
+  } catch (const std::exception& e) {
+    return fail(e);
+  }
 }
 
 int ale_lives(void* a) { return static_cast<ale::ALEInterface*>(a)->lives(); }

@@ -81,6 +81,9 @@ pub struct RunConfig {
     pub backend: BackendKind,
     /// Where the Fisher-vector products, the proximal policy steps and the value fit run.
     pub kernels: KernelsKind,
+    /// Record a video of one evaluation episode every this many epochs
+    /// (`videos/epoch-<N>.gif`); 0: never.
+    pub render_every: usize,
 }
 
 /// A configuration error; the message names the key.
@@ -219,6 +222,7 @@ impl RunConfig {
             train: TrainConfig::defaults(algo, env),
             backend: BackendKind::Cpu,
             kernels: KernelsKind::Auto,
+            render_every: 0,
         }
     }
 
@@ -300,6 +304,7 @@ impl RunConfig {
         }
         let backend = field(&mut doc, "backend")?;
         let kernels = field(&mut doc, "kernels")?;
+        let render_every = field(&mut doc, "render_every")?;
         let train = serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(|e| {
             ConfigFileError::Type {
                 key: e.path().to_string(),
@@ -310,11 +315,19 @@ impl RunConfig {
             train,
             backend,
             kernels,
+            render_every,
         })
     }
 
     /// Checks the ranges of every field.
     pub fn validate(&self) -> Result<(), apo_core::ConfigError> {
+        if self.render_every > apo_train::config::MAX_EPOCHS {
+            return Err(apo_core::ConfigError {
+                field: "render_every".into(),
+                value: self.render_every.to_string(),
+                rule: format!("must be ≤ {}", apo_train::config::MAX_EPOCHS),
+            });
+        }
         self.train.validate()
     }
 
@@ -374,6 +387,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("eval_episodes", "episodes of each evaluation; 1..=1000000"),
     ("eval_deterministic", "evaluate with the most likely action (a Gaussian's mean) instead of sampling; true/false"),
     ("eval_best", "the evaluation statistic that picks checkpoints/best (`apo eval --checkpoint best`): \"mean\", \"worst\" or \"cvar10\""),
+    ("render_every", "record a video of one evaluation episode every this many epochs, videos/epoch-<N>.gif, also in TensorBoard's Images tab (its own environment and seeds: training is unchanged; `apo render` for more); 0 = never"),
     ("pipeline", "overlap each epoch's value fit with the next epoch's rollout (bit-identical results; docs/architecture.md); true/false"),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];

@@ -5,7 +5,7 @@ use std::path::Path;
 use anyhow::Context;
 use apo_core::inference::{ActBuffers, HostPolicy};
 use apo_core::Learner;
-use apo_envs::{Action, Space};
+use apo_envs::{Action, Env, RunningMeanStd, Space};
 use burn::backend::NdArray;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -39,6 +39,22 @@ impl EvalResult {
     }
 }
 
+/// Where an evaluation episode is, as [`play`] tells its observer: after a reset
+/// (`step == 0`) and after every step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Moment {
+    /// The episode, from 0.
+    pub episode: usize,
+    /// Steps taken in the episode.
+    pub step: usize,
+    /// The last step's reward (0 after a reset).
+    pub reward: f64,
+    /// The undiscounted return so far.
+    pub ret: f64,
+    /// Whether the episode ended with the last step.
+    pub done: bool,
+}
+
 /// Runs `episodes` episodes of the policy in checkpoint `which` of `run_dir` (on the CPU),
 /// seeded by `seed`; with `deterministic` the policy takes the mean (Gaussian) or most likely
 /// (categorical) action. Returns the results and the checkpoint's epoch.
@@ -49,55 +65,138 @@ pub fn evaluate(
     deterministic: bool,
     seed: u64,
 ) -> anyhow::Result<(EvalResult, usize)> {
-    let config = RunConfig::load(&run_dir.join("config.toml"))
-        .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
-    // the run's action mapping, but episodes seeded by the evaluation's own seeds
-    let options = apo_envs::MakeOptions {
-        fixed_reset_seed: None,
-        ..config.train.make_options()
-    };
-    let mut env = apo_envs::make_with(&config.train.env, &options)?;
-    let obs_dim = env.observation_space().flat_dim();
-    let action = action_kind(env.action_space());
-    let (policy_cfg, value_cfg) = (
-        config.train.mlp_policy(obs_dim, action),
-        config.train.value(obs_dim),
-    );
-    let device = Default::default();
-    let mut learner = Learner::<NdArray, _>::new(
-        policy_cfg,
-        action,
-        &value_cfg,
-        config.train.algo.clone(),
-        &device,
-        0,
+    let mut run = LoadedRun::load(run_dir, which)?;
+    let result = play_episodes(
+        run.env.as_mut(),
+        &mut run.policy,
+        run.normalizer.as_ref(),
+        &Episodes {
+            count: episodes,
+            deterministic,
+            seed,
+        },
+        &mut |_, _| Ok(()),
     )?;
-    let from = checkpoint::locate(run_dir, which)?.with_context(|| {
-        format!(
-            "{} has no checkpoint yet: the run has not completed an epoch",
-            run_dir.display()
-        )
-    })?;
-    let state = checkpoint::load(
-        &from,
-        &mut learner,
-        &shapes(&config, obs_dim, action),
-        &device,
-    )?;
-    let mut policy = HostPolicy::new(&learner.policy_on::<NdArray>(&device), action);
+    Ok((result, run.epoch))
+}
+
+/// A run's policy loaded from one of its checkpoints, with an environment to play it on.
+pub struct LoadedRun {
+    /// The run's configuration.
+    pub config: RunConfig,
+    /// The run's environment, made with its action mapping and time limit, but reset only by
+    /// the seeds the episodes are given.
+    pub env: Box<dyn Env>,
+    /// The checkpoint's policy, on the host.
+    pub policy: HostPolicy,
+    /// The checkpoint's observation normalizer, when the run normalizes observations.
+    pub normalizer: Option<RunningMeanStd>,
+    /// The checkpoint's epoch.
+    pub epoch: usize,
+}
+
+impl LoadedRun {
+    /// Loads checkpoint `which` of `run_dir` (its shapes and checksums checked).
+    ///
+    /// # Errors
+    /// Not a run directory, no such checkpoint, a damaged checkpoint, an unknown environment.
+    pub fn load(run_dir: &Path, which: &Which) -> anyhow::Result<LoadedRun> {
+        let config = RunConfig::load(&run_dir.join("config.toml"))
+            .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
+        // the run's action mapping, but episodes seeded by the evaluation's own seeds
+        let options = apo_envs::MakeOptions {
+            fixed_reset_seed: None,
+            ..config.train.make_options()
+        };
+        let env = apo_envs::make_with(&config.train.env, &options)?;
+        let obs_dim = env.observation_space().flat_dim();
+        let action = action_kind(env.action_space());
+        let (policy_cfg, value_cfg) = (
+            config.train.mlp_policy(obs_dim, action),
+            config.train.value(obs_dim),
+        );
+        let device = Default::default();
+        let mut learner = Learner::<NdArray, _>::new(
+            policy_cfg,
+            action,
+            &value_cfg,
+            config.train.algo.clone(),
+            &device,
+            0,
+        )?;
+        let from = checkpoint::locate(run_dir, which)?.with_context(|| {
+            format!(
+                "{} has no checkpoint yet: the run has not completed an epoch",
+                run_dir.display()
+            )
+        })?;
+        let state = checkpoint::load(
+            &from,
+            &mut learner,
+            &shapes(&config, obs_dim, action),
+            &device,
+        )?;
+        let policy = HostPolicy::new(&learner.policy_on::<NdArray>(&device), action);
+        Ok(LoadedRun {
+            config,
+            env,
+            policy,
+            normalizer: state.run.normalizer,
+            epoch: state.run.epoch,
+        })
+    }
+}
+
+/// Which episodes [`play_episodes`] plays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Episodes {
+    /// How many.
+    pub count: usize,
+    /// Act with the mean (Gaussian) or most likely (categorical) action.
+    pub deterministic: bool,
+    /// Episode `i` starts from `reset(seed + i)`; sampled actions draw from `StdRng(seed)`.
+    pub seed: u64,
+}
+
+/// Plays `episodes` of `policy` on `env`, normalizing observations with `normalizer` (not
+/// updated), calling `observe` after each reset and each step. The episodes of [`evaluate`]
+/// with the same seed, for a policy held in memory (the videos of a training run).
+///
+/// # Errors
+/// The observer's, which stop the episodes.
+pub fn play_episodes(
+    env: &mut dyn Env,
+    policy: &mut HostPolicy,
+    normalizer: Option<&RunningMeanStd>,
+    episodes: &Episodes,
+    observe: &mut dyn FnMut(&mut dyn Env, &Moment) -> anyhow::Result<()>,
+) -> anyhow::Result<EvalResult> {
+    let Episodes {
+        count,
+        deterministic,
+        seed,
+    } = *episodes;
     let mut rng = StdRng::seed_from_u64(seed);
-    let mut obs = vec![0.0f32; obs_dim];
+    let mut obs = vec![0.0f32; env.observation_space().flat_dim()];
     let mut act = ActBuffers::default();
     let mut result = EvalResult {
         returns: vec![],
         lengths: vec![],
         success: vec![],
     };
-    for episode in 0..episodes {
+    for episode in 0..count {
         env.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
         let (mut ret, mut len) = (0.0, 0);
+        let mut moment = Moment {
+            episode,
+            step: 0,
+            reward: 0.0,
+            ret,
+            done: false,
+        };
+        observe(env, &moment)?;
         let success = loop {
-            if let Some(rms) = &state.run.normalizer {
+            if let Some(rms) = normalizer {
                 rms.normalize(&mut obs);
             }
             policy.act(&obs, 1, deterministic, &mut rng, &mut act);
@@ -109,6 +208,14 @@ pub fn evaluate(
             };
             ret += t.reward;
             len += 1;
+            moment = Moment {
+                step: len,
+                reward: t.reward,
+                ret,
+                done: t.done(),
+                ..moment
+            };
+            observe(env, &moment)?;
             if t.done() {
                 break t.info.success;
             }
@@ -117,5 +224,5 @@ pub fn evaluate(
         result.lengths.push(len);
         result.success.push(success);
     }
-    Ok((result, state.run.epoch))
+    Ok(result)
 }

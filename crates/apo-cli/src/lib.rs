@@ -1,5 +1,5 @@
 //! The library behind the `apo` binary: run configuration, the training loop, run
-//! directories, checkpoints, evaluation, plots and benchmarks.
+//! directories, checkpoints, evaluation, videos, plots and benchmarks.
 
 pub mod atomic;
 pub mod bench;
@@ -21,5 +21,6 @@ pub mod sweep;
 pub mod tensorboard;
 pub mod theory;
 pub mod trainer;
+pub mod video;
 
 pub use config::{BackendKind, RunConfig};

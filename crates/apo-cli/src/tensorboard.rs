@@ -95,6 +95,22 @@ impl EventWriter {
         self.write_record(&scalars_event(wall_time, step, values))
     }
 
+    /// Writes one event with the image `encoded` (a PNG or a GIF file's bytes; TensorBoard's
+    /// Images tab plays an animated GIF, as tensorboardX's videos are stored) of
+    /// `width × height` RGB pixels under `tag` at `step`, and syncs the file.
+    pub fn image(
+        &mut self,
+        step: u64,
+        wall_time: f64,
+        tag: &str,
+        (width, height): (u32, u32),
+        encoded: &[u8],
+    ) -> anyhow::Result<()> {
+        let step = i64::try_from(step)
+            .with_context(|| format!("step {step} does not fit TensorBoard's int64"))?;
+        self.write_record(&image_event(wall_time, step, tag, (width, height), encoded))
+    }
+
     /// Frames `data` as a TFRecord, appends it and syncs the file's data to disk.
     fn write_record(&mut self, data: &[u8]) -> anyhow::Result<()> {
         let context = || format!("cannot write {}", self.path.display());
@@ -247,14 +263,44 @@ fn scalars_event(wall_time: f64, step: i64, values: &[(&str, f64)]) -> Vec<u8> {
         value.extend_from_slice(&(*v as f32).to_le_bytes());
         put_bytes(&mut summary, 1, &value);
     }
+    summary_event(wall_time, step, &summary)
+}
+
+/// `Event { wall_time, step, summary }` of an encoded `Summary`.
+fn summary_event(wall_time: f64, step: i64, summary: &[u8]) -> Vec<u8> {
     let mut event = Vec::new();
     put_key(&mut event, 1, FIXED64);
     event.extend_from_slice(&wall_time.to_le_bytes());
     put_key(&mut event, 2, VARINT);
     // int64 is encoded as its two's-complement bits; `step` is never negative here.
     put_varint(&mut event, step as u64);
-    put_bytes(&mut event, 5, &summary);
+    put_bytes(&mut event, 5, summary);
     event
+}
+
+/// `Event { wall_time, step, summary: Summary { value: [Value { tag, image: Image { height,
+/// width, colorspace: 3 (RGB), encoded_image_string } }] } }`.
+fn image_event(
+    wall_time: f64,
+    step: i64,
+    tag: &str,
+    (width, height): (u32, u32),
+    encoded: &[u8],
+) -> Vec<u8> {
+    let mut image = Vec::new();
+    put_key(&mut image, 1, VARINT);
+    put_varint(&mut image, u64::from(height));
+    put_key(&mut image, 2, VARINT);
+    put_varint(&mut image, u64::from(width));
+    put_key(&mut image, 3, VARINT);
+    put_varint(&mut image, 3);
+    put_bytes(&mut image, 4, encoded);
+    let mut value = Vec::new();
+    put_bytes(&mut value, 1, tag.as_bytes());
+    put_bytes(&mut value, 4, &image);
+    let mut summary = Vec::new();
+    put_bytes(&mut summary, 1, &value);
+    summary_event(wall_time, step, &summary)
 }
 
 #[cfg(test)]
@@ -552,5 +598,37 @@ mod tests {
             .iter()
             .any(|(t, v)| *t == "episode/count" && *v == 0.0));
         assert_eq!(full.len() - empty.len(), 9);
+    }
+
+    #[test]
+    fn writes_an_image_summary_with_its_size_and_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut writer = EventWriter::create(dir.path()).unwrap();
+        let gif = b"GIF89a not really a gif";
+        writer
+            .image(4_000, 1_700_000_002.0, "video/eval", (320, 240), gif)
+            .unwrap();
+        let bytes = std::fs::read(writer.path()).unwrap();
+        let records = read_records(&bytes);
+        assert_eq!(records.len(), 2, "version event, image event");
+        let event = read_fields(&records[1]);
+        assert!(matches!(event[1], (2, Field::Varint(4_000))));
+        let (5, Field::Bytes(summary)) = &event[2] else {
+            panic!("no summary: {event:?}")
+        };
+        let value = read_fields(summary);
+        let (1, Field::Bytes(value)) = &value[0] else {
+            panic!("no value")
+        };
+        let value = read_fields(value);
+        assert!(matches!(&value[0], (1, Field::Bytes(t)) if t == b"video/eval"));
+        let (4, Field::Bytes(image)) = &value[1] else {
+            panic!("no image: {value:?}")
+        };
+        let image = read_fields(image);
+        assert!(matches!(image[0], (1, Field::Varint(240))), "height");
+        assert!(matches!(image[1], (2, Field::Varint(320))), "width");
+        assert!(matches!(image[2], (3, Field::Varint(3))), "RGB");
+        assert!(matches!(&image[3], (4, Field::Bytes(b)) if b == gif));
     }
 }

@@ -5,15 +5,18 @@
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::bail;
-use apo_core::{ActionKind, Comm};
-use apo_train::{TrainError, Trainer};
+use anyhow::{bail, Context};
+use apo_core::inference::HostPolicy;
+use apo_core::{ActionKind, Comm, MlpPolicyConfig};
+use apo_train::{HostActor, TrainError, Trainer};
+use burn::backend::NdArray;
 use burn::tensor::backend::Backend;
 
 use crate::checkpoint::{self, Shapes, TrainState, Which};
 use crate::config::RunConfig;
 use crate::progress::{self, ProgressRow};
 use crate::tensorboard::{row_scalars, EventWriter};
+use crate::video::{EpochVideos, TENSORBOARD_VIDEO_BYTES, VIDEOS};
 
 /// How [`train`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -169,6 +172,15 @@ pub fn train<B: Backend>(
     if let Some(name) = events.as_ref().and_then(|e| e.path().file_name()) {
         crate::run_dir::claim(run_dir, &name.to_string_lossy())?;
     }
+    let mut videos = if writer {
+        let videos = EpochVideos::new(config, run_dir)?;
+        if videos.is_some() {
+            crate::run_dir::claim_new(run_dir, &[VIDEOS])?;
+        }
+        videos
+    } else {
+        None
+    };
     let mut checkpoint_epoch = trainer.state().epoch;
     let epochs = config.train.epochs;
     // the best evaluation so far, from the rows kept (a resumed run picks up where it was)
@@ -240,6 +252,12 @@ pub fn train<B: Backend>(
                 }
             }
         }
+        if let Some(videos) = videos.as_mut().filter(|v| v.due(row.epoch)) {
+            // a video that fails is reported, never the end of the training
+            if let Err(e) = record_video(videos, &trainer, &row, events.as_mut(), stop) {
+                tracing::warn!(epoch = row.epoch, "no video of this epoch: {e:#}");
+            }
+        }
         // a signal seen by any rank interrupts all of them after this epoch
         let mut interrupted = [f64::from(u8::from(stop.load(Ordering::Relaxed)))];
         comm.max(&mut interrupted);
@@ -254,6 +272,39 @@ pub fn train<B: Backend>(
         }
     }
     Ok(TrainEnd::Finished)
+}
+
+/// Records the video of the epoch of `row` with the trainer's current policy, and adds it to
+/// TensorBoard's images when it is small enough.
+fn record_video<B: Backend>(
+    videos: &mut EpochVideos,
+    trainer: &Trainer<B, MlpPolicyConfig, HostActor>,
+    row: &ProgressRow,
+    events: Option<&mut EventWriter>,
+    stop: &AtomicBool,
+) -> anyhow::Result<()> {
+    let device = Default::default();
+    let mut policy = HostPolicy::new(
+        &trainer.learner().policy_on::<NdArray>(&device),
+        trainer.action(),
+    );
+    let (path, size, result) = videos.record(
+        row.epoch,
+        &mut policy,
+        trainer.state().normalizer.as_ref(),
+        stop,
+    )?;
+    tracing::info!(epoch = row.epoch, video = %path.display(), returns = ?result.returns, "video");
+    if let Some(events) = events {
+        let bytes =
+            std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        if bytes.len() as u64 <= TENSORBOARD_VIDEO_BYTES {
+            events.image(row.env_steps, unix_time(), "video/episode", size, &bytes)?;
+        } else {
+            tracing::info!(video = %path.display(), bytes = bytes.len(), "too large for TensorBoard");
+        }
+    }
+    Ok(())
 }
 
 /// Seconds since the Unix epoch.

@@ -10,6 +10,7 @@ mod hardening;
 mod lose_nothing;
 mod physics;
 mod plot;
+mod render;
 mod reporting;
 mod sweep_report;
 mod theory;

@@ -548,3 +548,75 @@ fn camera_names(model: &mjModel) -> Vec<String> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sizes and offsets above against Debian's MuJoCo 2.2.2 headers (`libmujoco-dev`),
+    /// as the C compiler lays the structs out.
+    #[test]
+    fn struct_layouts_match_the_headers() {
+        let dir = std::env::temp_dir().join(format!("apo-render-layout-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let source = dir.join("layout.c");
+        std::fs::write(
+            &source,
+            r#"#include <stdio.h>
+#include <stddef.h>
+#include <mujoco/mujoco.h>
+int main(void) {
+  printf("%zu %zu %zu %zu %zu %zu\n", sizeof(mjvScene), sizeof(mjvGeom), sizeof(mjvOption),
+         sizeof(mjvPerturb), sizeof(mjvCamera), sizeof(mjrContext));
+  printf("%zu %zu %zu\n", offsetof(mjvScene, maxgeom), offsetof(mjvScene, ngeom),
+         offsetof(mjvScene, geoms));
+  printf("%zu %zu %zu %zu %zu %zu\n", offsetof(mjvCamera, type), offsetof(mjvCamera, fixedcamid),
+         offsetof(mjvCamera, trackbodyid), offsetof(mjvCamera, distance),
+         offsetof(mjvCamera, azimuth), offsetof(mjvCamera, elevation));
+  return 0;
+}
+"#,
+        )
+        .expect("write the probe");
+        let binary = dir.join("layout");
+        let built = std::process::Command::new("cc")
+            .arg(&source)
+            .arg("-o")
+            .arg(&binary)
+            .output()
+            .expect("cc runs (Debian's build-essential)");
+        assert!(
+            built.status.success(),
+            "the probe does not compile against /usr/include/mujoco (libmujoco-dev): {}",
+            String::from_utf8_lossy(&built.stderr)
+        );
+        let out = std::process::Command::new(&binary)
+            .output()
+            .expect("the probe runs");
+        let numbers: Vec<usize> = String::from_utf8_lossy(&out.stdout)
+            .split_whitespace()
+            .map(|n| n.parse().expect("a number"))
+            .collect();
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(
+            numbers,
+            [
+                SCENE_SIZE,
+                GEOM_SIZE,
+                OPTION_SIZE,
+                PERTURB_SIZE,
+                CAMERA_SIZE,
+                CONTEXT_SIZE,
+                SCENE_MAXGEOM,
+                SCENE_NGEOM,
+                SCENE_GEOMS,
+                CAMERA_TYPE,
+                CAMERA_FIXEDCAMID,
+                CAMERA_TRACKBODYID,
+                CAMERA_DISTANCE,
+                CAMERA_AZIMUTH,
+                CAMERA_ELEVATION,
+            ]
+        );
+    }
+}

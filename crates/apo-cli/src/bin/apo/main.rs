@@ -15,6 +15,7 @@ mod config;
 mod eval;
 mod list;
 mod plot;
+mod render;
 mod report;
 mod signals;
 mod stats;
@@ -43,6 +44,10 @@ enum Command {
     Train(train::TrainArgs),
     /// Evaluate a run's policy: prints the mean, std, min and max return.
     Eval(eval::EvalArgs),
+    /// Record a video of a run's policy (GIF, or MP4 with ffmpeg): the episodes `apo eval`
+    /// plays with the same seed, with step, reward and return written on each frame. MuJoCo
+    /// tasks render headless through EGL or OSMesa (`APO_GL=egl|osmesa`).
+    Render(render::RenderArgs),
     /// Print the effective config with every key's meaning and range (TOML; usable as --config).
     Config(config::ConfigArgs),
     /// List environments and algorithms.
@@ -132,6 +137,7 @@ fn main() -> ExitCode {
         Command::Train(args) => train::train_on_ranks(args),
         Command::List => done(list::run()),
         Command::Eval(args) => done(eval::run(&args)),
+        Command::Render(args) => render::run(&args),
         Command::Config(args) => done(config::run(args)),
         Command::Plot(args) => done(plot::run(&args)),
         Command::Bench(command) => done(bench::run(command)),

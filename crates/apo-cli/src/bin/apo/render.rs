@@ -1,0 +1,106 @@
+//! `apo render`: a video of a run's policy.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+
+use anyhow::Context;
+use apo_cli::checkpoint::Which;
+use apo_cli::video::{render_run, RenderOptions, VIDEOS};
+use apo_envs::Camera;
+
+use crate::signals::{interrupted_status, Signals};
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// The run directory.
+    #[arg(long)]
+    run: PathBuf,
+    /// Which checkpoint: `latest`, `best` (the best evaluation of a run with eval_every), or an
+    /// epoch kept by keep_checkpoint_every.
+    #[arg(long, default_value = "latest")]
+    checkpoint: Which,
+    /// Number of episodes.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    episodes: u64,
+    /// Act with the mean (Gaussian) or most likely (categorical) action.
+    #[arg(long)]
+    deterministic: bool,
+    /// Seed of the episodes: the same seed plays the same episodes as `apo eval --seed`.
+    #[arg(long, default_value_t = 12345)]
+    seed: u64,
+    /// The video: `.gif`, or `.mp4` when ffmpeg is installed (else a GIF beside it).
+    /// Default: <run>/videos/render.gif.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Frame width in pixels.
+    #[arg(long, default_value_t = 480, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    width: u32,
+    /// Frame height in pixels.
+    #[arg(long, default_value_t = 360, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    height: u32,
+    /// The camera: `track` (follows the robot), `free` (MuJoCo's default view) or the name of
+    /// a camera of the model.
+    #[arg(long, default_value = "track")]
+    camera: Camera,
+    /// Frames per second of the video.
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=100))]
+    fps: u32,
+    /// Keep one step in N (shorter videos of long episodes).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    every: u64,
+}
+
+/// Records the video; SIGINT or SIGTERM stops it, removing the unfinished file, with the
+/// signal's exit status.
+pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    let signals = Signals::install()?;
+    let out = match &args.out {
+        Some(out) => out.clone(),
+        None => {
+            let dir = args.run.join(VIDEOS);
+            if apo_cli::run_dir::is_run_dir(&args.run) {
+                // made by apo, so listed in the run's marker (`--force` may remove it)
+                apo_cli::run_dir::claim_new(&args.run, &[VIDEOS])?;
+                std::fs::create_dir_all(&dir)
+                    .with_context(|| format!("cannot create {}", dir.display()))?;
+            }
+            dir.join("render.gif")
+        }
+    };
+    let options = RenderOptions {
+        episodes: args.episodes as usize,
+        deterministic: args.deterministic,
+        seed: args.seed,
+        camera: args.camera.clone(),
+        width: args.width,
+        height: args.height,
+        fps: args.fps,
+        every: args.every as usize,
+    };
+    let rendered = match render_run(&args.run, &args.checkpoint, &options, &out, &signals.stop) {
+        Ok(rendered) => rendered,
+        Err(e) if signals.stop.load(Ordering::Relaxed) => {
+            eprintln!("{e:#}");
+            return Ok(ExitCode::from(interrupted_status(
+                signals.which.load(Ordering::Relaxed),
+            )));
+        }
+        Err(e) => return Err(e),
+    };
+    let returns: Vec<String> = rendered
+        .result
+        .returns
+        .iter()
+        .map(|r| format!("{r:.3}"))
+        .collect();
+    println!(
+        "checkpoint_epoch={} episodes={} returns={} frames={} video={}",
+        rendered.epoch,
+        rendered.result.returns.len(),
+        returns.join(","),
+        rendered.frames,
+        rendered.path.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}

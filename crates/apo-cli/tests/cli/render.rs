@@ -1,0 +1,352 @@
+//! `apo render` and `render_every`: the episodes of `apo eval`, the video's frames and size,
+//! training unchanged by videos, and clear errors for bad input.
+
+use std::path::Path;
+
+use super::{fails, ok, path, small, timeless};
+
+/// The frames and the size of a GIF.
+fn gif_frames(file: &Path) -> (usize, (u16, u16)) {
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let mut decoder = options
+        .read_info(std::fs::File::open(file).expect("the video"))
+        .expect("a GIF");
+    let size = (decoder.width(), decoder.height());
+    let mut frames = 0;
+    while decoder.read_next_frame().expect("a frame").is_some() {
+        frames += 1;
+    }
+    (frames, size)
+}
+
+/// `key=value` of `apo render`'s or `apo eval`'s output line.
+fn field<'a>(out: &'a str, key: &str) -> &'a str {
+    out.split_whitespace()
+        .find_map(|f| f.strip_prefix(&format!("{key}=")))
+        .unwrap_or_else(|| panic!("no {key} in {out}"))
+}
+
+#[test]
+fn render_plays_the_episodes_of_eval_frame_by_frame() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let video = tmp.path().join("cartpole.gif");
+    let out = ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "2",
+        "--seed",
+        "5",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--fps",
+        "20",
+        "--out",
+        path(&video),
+    ]);
+    let returns: Vec<f64> = field(&out, "returns")
+        .split(',')
+        .map(|r| r.parse().expect("a return"))
+        .collect();
+    // the same episodes as `apo eval` with the same seed
+    let eval = ok(&[
+        "eval",
+        "--run",
+        path(&run),
+        "--episodes",
+        "2",
+        "--seed",
+        "5",
+    ]);
+    assert_eq!(returns.len(), 2);
+    let (lo, hi) = (returns[0].min(returns[1]), returns[0].max(returns[1]));
+    let number = |key: &str| field(&eval, key).parse::<f64>().expect("a number");
+    assert!((number("min_return") - lo).abs() < 1e-3, "{out} vs {eval}");
+    assert!((number("max_return") - hi).abs() < 1e-3, "{out} vs {eval}");
+    // CartPole pays 1 per step: a frame after each reset and each step
+    let steps: usize = returns.iter().map(|&r| r.round() as usize).sum();
+    let (frames, size) = gif_frames(&video);
+    assert_eq!(size, (64, 48));
+    assert_eq!(frames, steps + 2, "{out}");
+    // the last frame of each episode is held a second (20 frames at 20 fps)
+    assert_eq!(
+        field(&out, "frames").parse::<usize>().expect("frames"),
+        steps + 2 + 2 * 19
+    );
+
+    // one step in 10: the resets, every 10th step and the episodes' ends
+    let sparse = tmp.path().join("sparse.gif");
+    ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "2",
+        "--seed",
+        "5",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--every",
+        "10",
+        "--out",
+        path(&sparse),
+    ]);
+    let kept: usize = returns
+        .iter()
+        .map(|&r| {
+            let len = r.round() as usize;
+            1 + len / 10 + usize::from(!len.is_multiple_of(10))
+        })
+        .sum();
+    assert_eq!(gif_frames(&sparse).0, kept);
+}
+
+#[test]
+fn render_refuses_bad_input_by_name() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let err = fails(&["render", "--run", path(&run), "--camera", "side"]);
+    assert!(
+        err.contains("unknown camera `side`") && err.contains("track"),
+        "{err}"
+    );
+    let err = fails(&[
+        "render",
+        "--run",
+        path(&run),
+        "--out",
+        path(&tmp.path().join("v.avi")),
+    ]);
+    assert!(err.contains(".gif or .mp4"), "{err}");
+    let err = fails(&[
+        "render",
+        "--run",
+        path(&run),
+        "--out",
+        path(&tmp.path().join("no/such/dir/v.gif")),
+    ]);
+    assert!(err.contains("no/such/dir"), "{err}");
+    let err = fails(&["render", "--run", path(&tmp.path().join("nothing"))]);
+    assert!(err.contains("not a run directory"), "{err}");
+    let err = fails(&["render", "--run", path(&run), "--width", "0"]);
+    assert!(err.contains("--width"), "{err}");
+    // nothing was left behind by the failures
+    let left: Vec<_> = std::fs::read_dir(tmp.path())
+        .expect("tempdir")
+        .map(|e| e.expect("entry").file_name())
+        .collect();
+    assert_eq!(left, ["run"], "{left:?}");
+    // the default video goes into the run's videos/, which apo claims as its own
+    let out = ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--every",
+        "50",
+    ]);
+    assert!(run.join("videos/render.gif").is_file(), "{out}");
+    let marker = std::fs::read_to_string(run.join(".apo-run")).expect("marker");
+    assert!(marker.lines().any(|l| l == "videos"), "{marker}");
+}
+
+#[test]
+fn an_mp4_needs_ffmpeg_and_falls_back_to_a_gif() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let mp4 = tmp.path().join("v.mp4");
+    let args = [
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "65",
+        "--height",
+        "49",
+        "--out",
+        path(&mp4),
+    ];
+    if apo_cli::video::ffmpeg_available() {
+        ok(&args);
+        let bytes = std::fs::read(&mp4).expect("the MP4");
+        assert_eq!(&bytes[4..8], b"ftyp", "an MP4 starts with its ftyp box");
+    }
+    // without ffmpeg on the PATH: a GIF beside it, and a warning that says so
+    let empty = tmp.path().join("empty-path");
+    std::fs::create_dir(&empty).expect("dir");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args)
+        .env("PATH", &empty)
+        .output()
+        .expect("apo runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("ffmpeg is not installed"), "{stderr}");
+    assert_eq!(gif_frames(&tmp.path().join("v.gif")).1, (65, 49));
+}
+
+#[test]
+fn videos_during_training_change_nothing_and_reach_tensorboard() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (plain, filmed) = (tmp.path().join("plain"), tmp.path().join("filmed"));
+    let args = |dir: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "train".to_string(),
+            "--algo".into(),
+            "ppo".into(),
+            "--env".into(),
+            "CartPole-v1".into(),
+            "--epochs".into(),
+            "3".into(),
+            "--steps-per-epoch".into(),
+            "300".into(),
+            "--seed".into(),
+            "3".into(),
+            "--quiet".into(),
+            "--out".into(),
+            path(dir).into(),
+        ];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args
+    };
+    let run = |a: Vec<String>| ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    run(args(&plain, &[]));
+    run(args(&filmed, &["--set", "render_every=2"]));
+    assert_eq!(
+        timeless(&plain),
+        timeless(&filmed),
+        "videos changed the training"
+    );
+    let videos: Vec<_> = std::fs::read_dir(filmed.join("videos"))
+        .expect("videos/")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(videos, ["epoch-2.gif"]);
+    let (frames, size) = gif_frames(&filmed.join("videos/epoch-2.gif"));
+    assert_eq!(size, (320, 240));
+    assert!(frames >= 2, "{frames}");
+    // the event file holds the GIF as an image summary
+    let events = std::fs::read_dir(&filmed)
+        .expect("run")
+        .map(|e| e.expect("entry").path())
+        .find(|p| p.to_string_lossy().contains("tfevents"))
+        .expect("an event file");
+    let bytes = std::fs::read(events).expect("events");
+    let has = |needle: &[u8]| bytes.windows(needle.len()).any(|w| w == needle);
+    assert!(has(b"video/episode") && has(b"GIF89a"));
+    // `--force` removes the videos it made with the rest of the run
+    run(args(&filmed, &["--force"]));
+    assert!(!filmed.join("videos").exists());
+}
+
+/// `apo` with `args` and the environment variable `key=value`.
+fn apo_with(key: &str, value: &str, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args)
+        .env(key, value)
+        .output()
+        .expect("apo runs")
+}
+
+#[test]
+fn mujoco_runs_render_headless_and_say_why_when_opengl_is_missing() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("hopper");
+    ok(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "Hopper-v4",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
+        path(&run),
+    ]);
+    let video = tmp.path().join("hopper.gif");
+    let out = ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "96",
+        "--height",
+        "72",
+        "--out",
+        path(&video),
+    ]);
+    let (frames, size) = gif_frames(&video);
+    assert_eq!(size, (96, 72));
+    let eval = ok(&["eval", "--run", path(&run), "--episodes", "1"]);
+    let length: f64 = field(&eval, "mean_length").parse().expect("a length");
+    assert_eq!(frames, length as usize + 1, "{out}");
+
+    // no OpenGL platform: the error says what was tried and what to install; no file is left
+    let bad = tmp.path().join("bad.gif");
+    let out = apo_with(
+        "APO_GL",
+        "none",
+        &["render", "--run", path(&run), "--out", path(&bad)],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("Hopper-v4")
+            && stderr.contains("no headless OpenGL")
+            && stderr.contains("libegl1"),
+        "{stderr}"
+    );
+    assert!(!bad.exists());
+    // a run with videos whose environment cannot be rendered stops before its first epoch,
+    // leaving no directory behind
+    let unfilmable = tmp.path().join("unfilmable");
+    let out = apo_with(
+        "APO_GL",
+        "none",
+        &[
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "Hopper-v4",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(&unfilmable),
+            "--set",
+            "render_every=1",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("render_every = 1: cannot render Hopper-v4"),
+        "{stderr}"
+    );
+    assert!(!unfilmable.exists(), "{stderr}");
+}
