@@ -535,3 +535,103 @@ impl EpochVideos {
 
 /// The folder of a run's videos.
 pub const VIDEOS: &str = "videos";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use apo_core::{ActionKind, MlpPolicyConfig, PolicyFamily};
+    use apo_envs::{Action, Space, Transition};
+    use burn::backend::NdArray;
+
+    /// An environment of its own, without a renderer.
+    struct Blind {
+        observation: Space,
+        action: Space,
+    }
+
+    impl Env for Blind {
+        fn observation_space(&self) -> &Space {
+            &self.observation
+        }
+        fn action_space(&self) -> &Space {
+            &self.action
+        }
+        fn reset(&mut self, _seed: Option<u64>, obs: &mut [f32]) {
+            obs.fill(0.0);
+        }
+        fn step(&mut self, _action: Action<'_>, obs: &mut [f32]) -> Transition {
+            obs.fill(0.0);
+            Transition {
+                reward: 1.0,
+                terminated: true,
+                truncated: false,
+                info: Default::default(),
+            }
+        }
+    }
+
+    fn options() -> RenderOptions {
+        RenderOptions {
+            episodes: 1,
+            deterministic: true,
+            seed: 0,
+            camera: Camera::Track,
+            width: 32,
+            height: 24,
+            fps: 10,
+            every: 1,
+        }
+    }
+
+    #[test]
+    fn an_environment_without_a_renderer_is_named_and_leaves_no_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut env = Blind {
+            observation: Space::uniform_box(3, -1.0, 1.0),
+            action: Space::Discrete { n: 2 },
+        };
+        let policy = MlpPolicyConfig::new(3, ActionKind::Discrete { n: 2 })
+            .init::<NdArray>(&Default::default());
+        let mut policy = HostPolicy::new(&policy, ActionKind::Discrete { n: 2 });
+        let out = dir.path().join("blind.gif");
+        let error = render_policy(
+            &mut env,
+            "Blind-v0",
+            &mut policy,
+            None,
+            &options(),
+            &out,
+            &AtomicBool::new(false),
+        )
+        .expect_err("no renderer");
+        let message = format!("{error:#}");
+        assert!(
+            message.contains("rendering Blind-v0") && message.contains("no renderer"),
+            "{message}"
+        );
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
+        assert!(left.is_empty(), "{left:?}");
+    }
+
+    #[test]
+    fn frames_of_another_size_and_empty_videos_are_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let out = dir.path().join("v.gif");
+        let mut writer = VideoWriter::create(&out, 8, 6, 10).expect("writer");
+        let wrong = Frame::new(6, 8).expect("frame");
+        assert!(writer.push(&wrong, 1).is_err());
+        assert!(writer.finish().is_err(), "a video without frames");
+        assert!(!out.exists());
+        assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 0);
+        // a finished one: its frames, its size
+        let mut writer = VideoWriter::create(&out, 8, 6, 10).expect("writer");
+        let frame = Frame::new(8, 6).expect("frame");
+        writer.push(&frame, 1).expect("push");
+        writer.push(&frame, 3).expect("push");
+        let (path, frames) = writer.finish().expect("finish");
+        assert_eq!((path, frames), (out.clone(), 4));
+        assert!(std::fs::read(&out).expect("gif").starts_with(b"GIF89a"));
+        assert!(Format::of(Path::new("x.webm")).is_err());
+        assert_eq!(Format::of(Path::new("x.MP4")).ok(), Some(Format::Mp4));
+    }
+}
