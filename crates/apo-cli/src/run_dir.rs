@@ -191,8 +191,9 @@ pub fn check_resumable(dir: &Path) -> anyhow::Result<RunConfig> {
 }
 
 /// Removes what apo created in the run directory `dir` (the entries of its marker, the
-/// checkpoints apo wrote in `checkpoints/`, apo's temporary files) and the marker. The lock
-/// file stays while it is held (a new process could otherwise lock a new file beside it):
+/// checkpoints apo wrote in `checkpoints/`, the videos it wrote in `videos/`, apo's temporary
+/// files) and the marker. The lock file stays while it is held (a new process could otherwise
+/// lock a new file beside it):
 /// with `released`, the lock is no longer held and goes too. With `remove_dir`, `dir` goes
 /// as well when nothing else is left. Returns the entries kept because apo did not create
 /// them.
@@ -207,6 +208,9 @@ pub fn remove_run_files(
     let listed = created_entries(dir)?.unwrap_or_default();
     if listed.contains(CHECKPOINTS) {
         crate::checkpoint::remove_checkpoints(&dir.join(CHECKPOINTS))?;
+    }
+    if listed.contains(crate::video::VIDEOS) {
+        crate::video::remove_videos(&dir.join(crate::video::VIDEOS))?;
     }
     let mut names: Vec<String> = Vec::new();
     for name in listed.iter().filter(|n| released || n.as_str() != LOCK) {
