@@ -650,7 +650,13 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let root = dir.path().join(VIDEOS);
         std::fs::create_dir(&root).expect("videos/");
-        for name in ["epoch-3.gif", "epoch-10.gif", "render.gif", "mine.gif", "epoch-x.gif"] {
+        for name in [
+            "epoch-3.gif",
+            "epoch-10.gif",
+            "render.gif",
+            "mine.gif",
+            "epoch-x.gif",
+        ] {
             std::fs::write(root.join(name), b"GIF89a").expect("file");
         }
         remove_videos(&root).expect("removed");
