@@ -206,3 +206,51 @@ fn every_registered_mujoco_task_builds_and_steps_on_mujoco3() {
         assert_eq!(unstable, 0, "{name}: unstable steps under random actions");
     }
 }
+
+/// The number of pixels that differ between two frames of one size.
+fn changed(a: &apo_envs::Frame, b: &apo_envs::Frame) -> usize {
+    a.rgb()
+        .chunks_exact(3)
+        .zip(b.rgb().chunks_exact(3))
+        .filter(|(p, q)| p != q)
+        .count()
+}
+
+#[test]
+fn mujoco3_renders_with_its_own_renderer_like_mujoco2() {
+    use apo_envs::{Camera, Frame};
+    let mut two = env::<Hopper>(Hopper::MJCF, Physics::Mujoco2);
+    let mut three = env::<Hopper>(Hopper::MJCF, Physics::Mujoco3);
+    let qpos = [0.0, 1.25, 0.0, 0.0, 0.0, 0.0];
+    two.set_state(&qpos, &[0.0; 6]);
+    three.set_state(&qpos, &[0.0; 6]);
+    let mut a = Frame::new(160, 120).expect("frame");
+    let mut b = a.clone();
+    let mut again = a.clone();
+    two.render(&Camera::Track, &mut a)
+        .expect("MuJoCo 2.2.2 renders");
+    three
+        .render(&Camera::Track, &mut b)
+        .expect("MuJoCo 3.17 renders");
+    three
+        .render(&Camera::Track, &mut again)
+        .expect("MuJoCo 3.17 renders");
+    assert_eq!(changed(&b, &again), 0, "the same state rendered twice");
+    // the same scene from the same camera: most pixels agree between the versions
+    let differ = changed(&a, &b);
+    assert!(
+        differ < 160 * 120 / 5,
+        "{differ} of {} pixels differ",
+        160 * 120
+    );
+    // another state moves the robot's pixels
+    three.set_state(&[0.0, 1.25, 0.0, -1.0, -1.0, 0.8], &[0.0; 6]);
+    three
+        .render(&Camera::Track, &mut again)
+        .expect("MuJoCo 3.17 renders");
+    assert!(changed(&b, &again) > 100);
+    assert!(matches!(
+        three.render(&Camera::Named("nope".into()), &mut again),
+        Err(apo_envs::RenderError::UnknownCamera { .. })
+    ));
+}

@@ -5,7 +5,7 @@
 //! The safe wrappers of `mujoco-rs` do the work where they exist: [`MjModel::from_xml_string`]
 //! and [`MjModel::from_xml`] load, [`MjData`] steps, resets and exposes the arrays. The raw
 //! bindings (`mujoco_rs::mujoco_c`) are used for the version check, MuJoCo's error and warning
-//! hooks, and three pointer accesses the wrappers have no safe form for (`qpos` and `qvel`
+//! hooks, the renderer (`render3.rs`), and three pointer accesses the wrappers have no safe form for (`qpos` and `qvel`
 //! borrowed together, and writing a body's pose into a model that a data shares).
 //!
 //! Differences from MuJoCo 2.2 that this module absorbs:
@@ -439,6 +439,14 @@ pub(crate) struct Mj3Data {
 impl PhysicsData for Mj3Data {
     fn step(&mut self) {
         self.data.step();
+    }
+
+    fn mj3_raw(&mut self) -> Option<(*const mujoco_c::mjModel, *mut mujoco_c::mjData)> {
+        let model: *const mujoco_c::mjModel = self.data.model().ffi();
+        // SAFETY: the pointer is only handed to MuJoCo's renderer, which reads the state and
+        // writes the data's visualization buffers, while `self` is exclusively borrowed.
+        let data: *mut mujoco_c::mjData = unsafe { self.data.ffi_mut() };
+        Some((model, data))
     }
 
     fn forward(&mut self) {

@@ -37,6 +37,8 @@ mod mj3;
 mod model;
 pub(crate) mod physics;
 mod render;
+#[cfg(feature = "mujoco3")]
+mod render3;
 pub mod tasks;
 
 pub use bench::{steps_per_second, vector_steps_per_second};

@@ -254,6 +254,18 @@ impl Data {
         self.raw.mj2_raw()
     }
 
+    /// The MuJoCo 3.17 model and data behind this data, for the renderer; `None` on other
+    /// physics. Valid while `self` is borrowed.
+    #[cfg(feature = "mujoco3")]
+    pub(crate) fn mj3_raw(
+        &mut self,
+    ) -> Option<(
+        *const mujoco_rs::mujoco_c::mjModel,
+        *mut mujoco_rs::mujoco_c::mjData,
+    )> {
+        self.raw.mj3_raw()
+    }
+
     /// The model this data simulates.
     pub fn model(&self) -> &Arc<Model> {
         &self.model

@@ -285,6 +285,18 @@ pub(crate) trait PhysicsData: Send + Sync {
     fn mj2_raw(&mut self) -> Option<(*const super::ffi::mjModel, *mut super::ffi::mjData)> {
         None
     }
+
+    /// The MuJoCo 3.17 `mjModel` and `mjData` behind this data, for the renderer; `None` for
+    /// other backends. The pointers are valid while `self` is borrowed.
+    #[cfg(feature = "mujoco3")]
+    fn mj3_raw(
+        &mut self,
+    ) -> Option<(
+        *const mujoco_rs::mujoco_c::mjModel,
+        *mut mujoco_rs::mujoco_c::mjData,
+    )> {
+        None
+    }
 }
 
 /// The kinds of named model objects that can be looked up with [`Model::id`](super::Model::id).

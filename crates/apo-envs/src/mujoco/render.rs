@@ -14,8 +14,8 @@
 //! kept as opaque memory of their 2.2.2 sizes, and only the few fields set here are written,
 //! at their 2.2.2 offsets (measured with the C compiler against Debian's headers; see
 //! `docs/render.md`). The library's version is checked when it is loaded (`mj_version`).
-//! MuJoCo 3's data is not rendered yet: [`super::Physics::Mujoco3`] environments return
-//! [`RenderError::Failed`].
+//! The [`super::Physics::Mujoco3`] environments render with MuJoCo 3.17's own renderer
+//! (`render3.rs`, feature `mujoco3`) on the same context and with the same scene.
 
 use std::ffi::{c_char, c_int, c_uchar, c_void, CStr};
 use std::sync::OnceLock;
@@ -53,16 +53,16 @@ const CAMERA_AZIMUTH: usize = 48;
 const CAMERA_ELEVATION: usize = 56;
 
 /// `mjCAMERA_TRACKING`, `mjCAMERA_FIXED`.
-const CAMERA_TRACKING: c_int = 1;
-const CAMERA_FIXED: c_int = 2;
+pub(super) const CAMERA_TRACKING: c_int = 1;
+pub(super) const CAMERA_FIXED: c_int = 2;
 /// `mjCAT_ALL`: static, dynamic and decorative geoms.
-const CATEGORY_ALL: c_int = 7;
+pub(super) const CATEGORY_ALL: c_int = 7;
 /// `mjFB_WINDOW`: the context's default framebuffer (the EGL pbuffer, the OSMesa buffer).
-const FRAMEBUFFER_WINDOW: c_int = 0;
+pub(super) const FRAMEBUFFER_WINDOW: c_int = 0;
 /// `mjFONTSCALE_100`.
-const FONT_SCALE: c_int = 100;
+pub(super) const FONT_SCALE: c_int = 100;
 /// Geoms the scene holds: the model's and the decor.
-const MAX_GEOMS: c_int = 2000;
+pub(super) const MAX_GEOMS: c_int = 2000;
 
 /// `mjrRect`.
 #[repr(C)]
@@ -141,7 +141,7 @@ const GRID_LINES: i32 = 12;
 
 /// The floor grid's lines around `centre` (x, y), one metre apart, fixed in the world: thin
 /// boxes along y at whole x, and along x at whole y.
-fn grid(centre: [f64; 3]) -> impl Iterator<Item = Decor> {
+pub(super) fn grid(centre: [f64; 3]) -> impl Iterator<Item = Decor> {
     let (cx, cy) = (centre[0].round(), centre[1].round());
     let half = f64::from(GRID_LINES);
     let rgba = [0.3, 0.3, 0.3, 0.5];
@@ -291,9 +291,61 @@ impl Opaque {
     }
 }
 
-/// One environment's renderer: an OpenGL context of the frame's size and MuJoCo's scene and
-/// OpenGL resources for its model. Remade when the frame size or the model changes.
-pub(crate) struct SceneRenderer {
+/// One environment's renderer, for the physics its data runs on: an OpenGL context of the
+/// frame's size and MuJoCo's scene and OpenGL resources for its model. Remade when the frame
+/// size or the model changes.
+pub(crate) enum SceneRenderer {
+    /// MuJoCo 2.2.2's renderer.
+    Mj2(Mj2Renderer),
+    /// MuJoCo 3.17's renderer (`--physics mujoco3`).
+    #[cfg(feature = "mujoco3")]
+    Mj3(super::render3::Mj3Renderer),
+}
+
+impl std::fmt::Debug for SceneRenderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SceneRenderer::Mj2(r) => r.fmt(f),
+            #[cfg(feature = "mujoco3")]
+            SceneRenderer::Mj3(r) => r.fmt(f),
+        }
+    }
+}
+
+impl SceneRenderer {
+    /// Renders `data`'s state seen from `camera` (Track as `track` says), with `decor`
+    /// added, into `frame`, with the renderer of `data`'s physics, remaking `slot`'s renderer
+    /// when the physics, the frame size or the model changed.
+    ///
+    /// # Errors
+    /// [`RenderError::UnknownCamera`] for a camera name the model lacks;
+    /// [`RenderError::NoDisplay`] when no OpenGL context could be made;
+    /// [`RenderError::Failed`] when the renderer's functions are missing.
+    pub(crate) fn render(
+        slot: &mut Option<SceneRenderer>,
+        data: &mut Data,
+        camera: &Camera,
+        track: TrackView,
+        decor: &[Decor],
+        frame: &mut Frame,
+    ) -> Result<(), RenderError> {
+        if let Some((model, raw)) = data.mj2_raw() {
+            return Mj2Renderer::render(slot, model, raw, camera, track, decor, frame);
+        }
+        #[cfg(feature = "mujoco3")]
+        if let Some((model, raw)) = data.mj3_raw() {
+            return super::render3::Mj3Renderer::render(
+                slot, model, raw, camera, track, decor, frame,
+            );
+        }
+        Err(RenderError::Failed(
+            "this physics has no renderer in this build".into(),
+        ))
+    }
+}
+
+/// MuJoCo 2.2.2's renderer of one environment.
+pub(crate) struct Mj2Renderer {
     api: &'static RenderApi,
     gl: GlContext,
     model: *const mjModel,
@@ -309,21 +361,21 @@ pub(crate) struct SceneRenderer {
 // SAFETY: the renderer owns its context and MuJoCo structs and is used through `&mut self`
 // only, on one thread at a time (see `GlContext`); `model` is a pointer to the model of the
 // environment that owns the renderer, which outlives it, and is only read.
-unsafe impl Send for SceneRenderer {}
+unsafe impl Send for Mj2Renderer {}
 
-impl std::fmt::Debug for SceneRenderer {
+impl std::fmt::Debug for Mj2Renderer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SceneRenderer")
+        f.debug_struct("Mj2Renderer")
             .field("size", &self.gl.size())
             .finish_non_exhaustive()
     }
 }
 
-impl SceneRenderer {
-    fn new(model: *const mjModel, width: u32, height: u32) -> Result<SceneRenderer, RenderError> {
+impl Mj2Renderer {
+    fn new(model: *const mjModel, width: u32, height: u32) -> Result<Mj2Renderer, RenderError> {
         let api = api()?;
         let gl = GlContext::new(width, height)?;
-        let mut renderer = SceneRenderer {
+        let mut renderer = Mj2Renderer {
             api,
             gl,
             model,
@@ -348,41 +400,29 @@ impl SceneRenderer {
         Ok(renderer)
     }
 
-    /// Renders `data`'s state seen from `camera` (Track as `track` says), with `decor`
-    /// added, into `frame`, remaking `slot`'s renderer when the frame size or the model
-    /// changed.
-    ///
-    /// # Errors
-    /// [`RenderError::UnknownCamera`] for a camera name the model lacks;
-    /// [`RenderError::NoDisplay`] when no OpenGL context could be made;
-    /// [`RenderError::Failed`] for MuJoCo 3 data and when the renderer's functions are missing.
-    pub(crate) fn render(
+    /// [`SceneRenderer::render`] of MuJoCo 2.2.2's `model` and `data`.
+    fn render(
         slot: &mut Option<SceneRenderer>,
-        data: &mut Data,
+        model: *const mjModel,
+        data: *mut mjData,
         camera: &Camera,
         track: TrackView,
         decor: &[Decor],
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
-        let Some((model, raw)) = data.mj2_raw() else {
-            return Err(RenderError::Failed(
-                "the MuJoCo 3 physics has no renderer yet: render with --physics mujoco2".into(),
-            ));
-        };
         // SAFETY: `model` is the live model of `data`.
-        let fixed = camera_id(unsafe { &*model }, camera)?;
+        let fixed = camera_id(camera, || camera_names(unsafe { &*model }))?;
         let size = (frame.width(), frame.height());
-        if slot
-            .as_ref()
-            .is_none_or(|r| r.gl.size() != size || r.model != model)
-        {
+        let current =
+            matches!(slot, Some(SceneRenderer::Mj2(r)) if r.gl.size() == size && r.model == model);
+        if !current {
             *slot = None; // free the old context before making the new one
-            *slot = Some(SceneRenderer::new(model, size.0, size.1)?);
+            *slot = Some(SceneRenderer::Mj2(Mj2Renderer::new(model, size.0, size.1)?));
         }
-        let Some(renderer) = slot.as_mut() else {
+        let Some(SceneRenderer::Mj2(renderer)) = slot.as_mut() else {
             return Err(RenderError::Failed("no renderer".into()));
         };
-        renderer.draw(model, raw, fixed, track, decor, frame)
+        renderer.draw(model, data, fixed, track, decor, frame)
     }
 
     fn draw(
@@ -454,15 +494,7 @@ impl SceneRenderer {
             );
         }
         self.gl.release();
-        // MuJoCo's rows start at the bottom, the frame's at the top.
-        let row = 3 * frame.width() as usize;
-        for (to, from) in frame
-            .rgb_mut()
-            .chunks_exact_mut(row)
-            .zip(self.pixels.chunks_exact(row).rev())
-        {
-            to.copy_from_slice(from);
-        }
+        copy_flipped(&self.pixels, frame);
         Ok(())
     }
 
@@ -497,7 +529,7 @@ impl SceneRenderer {
     }
 }
 
-impl Drop for SceneRenderer {
+impl Drop for Mj2Renderer {
     fn drop(&mut self) {
         if self.gl.make_current().is_ok() {
             // SAFETY: the structs were made by `new`, the context is current.
@@ -510,14 +542,30 @@ impl Drop for SceneRenderer {
     }
 }
 
+/// Copies MuJoCo's pixels (RGB, rows from the bottom) into `frame` (rows from the top).
+pub(super) fn copy_flipped(pixels: &[u8], frame: &mut Frame) {
+    let row = 3 * frame.width() as usize;
+    for (to, from) in frame
+        .rgb_mut()
+        .chunks_exact_mut(row)
+        .zip(pixels.chunks_exact(row).rev())
+    {
+        to.copy_from_slice(from);
+    }
+}
+
 /// The camera to render from: `None` for [`Camera::Track`], `Some(None)` for the free
-/// camera, `Some(Some(id))` for the model's camera `id`.
-fn camera_id(model: &mjModel, camera: &Camera) -> Result<Option<Option<c_int>>, RenderError> {
+/// camera, `Some(Some(id))` for the model's camera `id`, among the model's camera `names`
+/// (in id order).
+pub(super) fn camera_id(
+    camera: &Camera,
+    names: impl FnOnce() -> Vec<String>,
+) -> Result<Option<Option<c_int>>, RenderError> {
     match camera {
         Camera::Track => Ok(None),
         Camera::Free => Ok(Some(None)),
         Camera::Named(name) => {
-            let names = camera_names(model);
+            let names = names();
             match names.iter().position(|n| n == name) {
                 Some(id) => Ok(Some(Some(id as c_int))),
                 None => Err(RenderError::UnknownCamera {
