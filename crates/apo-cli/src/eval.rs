@@ -39,7 +39,7 @@ impl EvalResult {
     }
 }
 
-/// Where an evaluation episode is, as [`play`] tells its observer: after a reset
+/// Where an evaluation episode is, as [`play_episodes`] tells its observer: after a reset
 /// (`step == 0`) and after every step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Moment {
