@@ -296,12 +296,13 @@ fn record_video<B: Backend>(
     )?;
     tracing::info!(epoch = row.epoch, video = %path.display(), returns = ?result.returns, "video");
     if let Some(events) = events {
-        let bytes =
-            std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
-        if bytes.len() as u64 <= TENSORBOARD_VIDEO_BYTES {
+        let context = || format!("cannot read {}", path.display());
+        let length = std::fs::metadata(&path).with_context(context)?.len();
+        if length <= TENSORBOARD_VIDEO_BYTES {
+            let bytes = std::fs::read(&path).with_context(context)?;
             events.image(row.env_steps, unix_time(), "video/episode", size, &bytes)?;
         } else {
-            tracing::info!(video = %path.display(), bytes = bytes.len(), "too large for TensorBoard");
+            tracing::info!(video = %path.display(), bytes = length, "too large for TensorBoard");
         }
     }
     Ok(())

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::{fails, ok, path, small, timeless};
+use super::{fails, ok, path, small, timeless, train};
 
 /// The frames and the size of a GIF.
 fn gif_frames(file: &Path) -> (usize, (u16, u16)) {
@@ -187,11 +187,7 @@ fn an_mp4_needs_ffmpeg_and_falls_back_to_a_gif() {
     // without ffmpeg on the PATH: a GIF beside it, and a warning that says so
     let empty = tmp.path().join("empty-path");
     std::fs::create_dir(&empty).expect("dir");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_apo"))
-        .args(args)
-        .env("PATH", &empty)
-        .output()
-        .expect("apo runs");
+    let out = apo_with("PATH", path(&empty), &args);
     assert!(
         out.status.success(),
         "{}",
@@ -206,29 +202,8 @@ fn an_mp4_needs_ffmpeg_and_falls_back_to_a_gif() {
 fn videos_during_training_change_nothing_and_reach_tensorboard() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let (plain, filmed) = (tmp.path().join("plain"), tmp.path().join("filmed"));
-    let args = |dir: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "train".to_string(),
-            "--algo".into(),
-            "ppo".into(),
-            "--env".into(),
-            "CartPole-v1".into(),
-            "--epochs".into(),
-            "3".into(),
-            "--steps-per-epoch".into(),
-            "300".into(),
-            "--seed".into(),
-            "3".into(),
-            "--quiet".into(),
-            "--out".into(),
-            path(dir).into(),
-        ];
-        args.extend(extra.iter().map(|s| s.to_string()));
-        args
-    };
-    let run = |a: Vec<String>| ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
-    run(args(&plain, &[]));
-    run(args(&filmed, &["--set", "render_every=2"]));
+    train(&plain, "ppo", &[]);
+    train(&filmed, "ppo", &["--set", "render_every=2"]);
     assert_eq!(
         timeless(&plain),
         timeless(&filmed),
@@ -252,7 +227,7 @@ fn videos_during_training_change_nothing_and_reach_tensorboard() {
     let has = |needle: &[u8]| bytes.windows(needle.len()).any(|w| w == needle);
     assert!(has(b"video/episode") && has(b"GIF89a"));
     // `--force` removes the videos it made with the rest of the run
-    run(args(&filmed, &["--force"]));
+    train(&filmed, "ppo", &["--force"]);
     assert!(!filmed.join("videos").exists());
 }
 
