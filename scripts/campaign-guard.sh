@@ -7,14 +7,17 @@
 #     fixed at its Hopper-best value (docs/results/omega-grid-hopper.md: APO 0.007, PAPO 0.003),
 #     the best omega1 by the worst return over the last LAST epochs (default 20), mean over seeds;
 #  2. evaluation: seeds 0..4 of APO and PAPO at their picked omega1, and of TRPO and PPO, on seeds
-#     never used for tuning.
+#     never used for tuning;
+#  3. the robust column: seeds 0..4 of APO and PAPO with --preset robust, in the variants'
+#     ablation folders (ROBUST_OUT/<suite>/{robust,papo-robust}, default results/variants/ablation).
 # Every step is an `apo sweep`, so the campaign is resumable: run it again and finished runs are
 # skipped (also those kept as config.toml + progress.csv only, as committed under
 # results/guard-campaign/), interrupted ones resumed from their checkpoint. Runs at nice 19 so
 # that builds keep priority, JOBS runs at once (default 1).
 #   bash scripts/campaign-guard.sh [OUT]   (default results/guard-campaign; needs target/release/apo,
 #                                           or APO=path/to/apo)
-# Then: apo report OUT/eval/*/* --last 20 --out OUT/report
+# Then: apo report OUT/eval/*/* --last 20 --out OUT/report (bash scripts/campaign-report.sh adds
+# the robust column)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-results/guard-campaign}
@@ -23,6 +26,7 @@ steps=${STEPS:-10000}
 jobs=${JOBS:-1}
 last=${LAST:-20}
 suites=${SUITES:-Goal_Point Push_Point Goal_Swimmer Push_Swimmer Goal_Arm3 Goal_Drone Goal_Hopper Push_Hopper}
+robust=${ROBUST_OUT:-results/variants/ablation}
 apo=${APO:-./target/release/apo}
 [ -x "$apo" ] || { echo "error: $apo is missing: cargo build --release -p apo-cli" >&2; exit 1; }
 sweep() { nice -n 19 "$apo" sweep --epochs "$epochs" --steps-per-epoch "$steps" --jobs "$jobs" \
@@ -44,4 +48,14 @@ for suite in $suites; do
   done
   echo "== $suite: trpo, ppo"
   sweep --algo trpo,ppo --env "$suite" --seeds 0..5 --out "$out/eval/$suite/baselines"
+  # the robust column: APO and PAPO with --preset robust (one omega for every task, never tuned
+  # here), the same sweeps as the variants' ablation (scripts/variants-ablation.sh), whose folders
+  # they share, so that either script finishes them for the other
+  for algo in apo papo; do
+    cell=robust; [ "$algo" = papo ] && cell=papo-robust
+    echo "== $suite: $algo --preset robust"
+    nice -n 19 "$apo" sweep --algo "$algo" --env "$suite" --seeds 0..5 --preset robust \
+      --epochs "$epochs" --steps-per-epoch "$steps" --jobs "$jobs" --threads 1 --quiet --last 10 \
+      --metric worst-last --out "$robust/$suite/$cell"
+  done
 done

@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # The ablation of APO's variants (docs/results/variants.md): the paper's APO, each variant alone,
 # the recommended combination (--preset robust) and TRPO, and PAPO's side of it (the paper's PAPO,
-# PAPO with --preset robust, PPO), on Hopper-v4 (EPOCHS_HOPPER x STEPS,
-# default 50 x 10 000 = 0.5 M steps, a reduced budget) and Goal_Point (the GUARD campaign's budget,
-# 100 x 10 000 = 1 M), seeds 0..4. On Goal_Point the TRPO, PPO and paper-PAPO runs are the
-# campaign's (results/guard-campaign/eval/Goal_Point), run with the same settings.
+# PAPO with --preset robust, PPO), on Hopper-v4 (EPOCHS_HOPPER x STEPS, default 100 x 10 000 =
+# 1 M steps) and the GUARD suites Goal_Point, Push_Point, Goal_Arm3 (the GUARD campaign's budget,
+# EPOCHS_GUARD x STEPS = 100 x 10 000 = 1 M), seeds 0..4. On a GUARD suite the TRPO and PPO runs
+# are the campaign's evaluation runs: the cells trpo and ppo run the campaign's own baseline sweep
+# (results/guard-campaign/eval/<suite>/baselines, same command, so either script finishes it for
+# the other); its paper-PAPO runs need the campaign's tuning and come from
+# scripts/campaign-guard.sh only.
 # Every cell is an `apo sweep`: resumable, finished runs are skipped. Runs at nice 19.
 #   bash scripts/variants-ablation.sh [OUT]   (default results/variants/ablation; JOBS=2)
 # Then: apo report OUT/*/* --last 10 --out OUT/report
@@ -18,8 +21,8 @@ apo=${APO:-./target/release/apo}
 # the robust preset's omega (crates/apo-cli/src/config.rs), for the scale-free penalty alone
 robust_omega=(--set algo.omega1=0.01 --set algo.omega2=0.005)
 cells=${CELLS:-paper units=advantage switch=held switch=off acceptance=ratio robust trpo papo papo-robust ppo}
-for env in ${ENVS:-Hopper-v4 Goal_Point}; do
-  case $env in Hopper-v4) epochs=${EPOCHS_HOPPER:-50} ;; *) epochs=${EPOCHS_GUARD:-100} ;; esac
+for env in ${ENVS:-Hopper-v4 Goal_Point Push_Point Goal_Arm3}; do
+  case $env in Hopper-v4) epochs=${EPOCHS_HOPPER:-100} ;; *) epochs=${EPOCHS_GUARD:-100} ;; esac
   sweep() { nice -n 19 "$apo" sweep --env "$env" --seeds 0..5 --epochs "$epochs" --steps-per-epoch "$steps" \
     --jobs "$jobs" --threads 1 --quiet --last 10 --metric worst-last "$@"; }
   for cell in $cells; do
@@ -30,7 +33,11 @@ for env in ${ENVS:-Hopper-v4 Goal_Point}; do
         sweep --algo apo --set "algo.$key=${cell#*=}" --out "$out/$env/$cell" ;;
       robust) sweep --algo apo --preset robust --out "$out/$env/$cell" ;;
       papo-robust) sweep --algo papo --preset robust --out "$out/$env/$cell" ;;
-      trpo|papo|ppo) [ "$env" = Goal_Point ] || sweep --algo "$cell" --out "$out/$env/$cell" ;;
+      trpo|ppo) case $env in
+          *_*) sweep --algo trpo,ppo --out "results/guard-campaign/eval/$env/baselines" ;;
+          *) sweep --algo "$cell" --out "$out/$env/$cell" ;;
+        esac ;;
+      papo) case $env in *_*) ;; *) sweep --algo papo --out "$out/$env/$cell" ;; esac ;;
       *) echo "error: unknown cell $cell" >&2; exit 2 ;;
     esac
   done

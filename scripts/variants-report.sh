@@ -2,7 +2,7 @@
 # The report of the variants' ablation (docs/results/variants.md): every cell's runs copied under
 # names that tell the cells apart (<env>-<algo>-<cell>-s<seed>; `apo report` groups runs by
 # name; the paper's algorithms keep their names, PAPO's robust cell is <env>-papo-robust), the
-# GUARD campaign's Goal_Point TRPO, PPO and PAPO runs beside them, then `apo report`.
+# GUARD campaign's TRPO, PPO and PAPO runs of each GUARD suite beside them, then `apo report`.
 #   bash scripts/variants-report.sh [ABLATION] [OUT]   (defaults results/variants/ablation, /tmp/variants-report)
 # The held-out comparison's folder (results/variants/heldout) works too: its baselines keep their
 # names, its robust-<algos> runs become <env>-<algo>-robust.
@@ -29,10 +29,13 @@ for cell in "$src"/*/*/; do
     cp "$run/config.toml" "$run/progress.csv" "$dest/"
   done
 done
-for run in results/guard-campaign/eval/Goal_Point/{baselines,papo}/Goal_Point-{trpo,ppo,papo}-s*/; do
-  [ -d "$src/Goal_Point" ] && [ -f "$run/progress.csv" ] || continue
-  dest="$runs/$(basename "$run")"
-  mkdir -p "$dest"
-  cp "$run/config.toml" "$run/progress.csv" "$dest/"
+for suite in "$src"/*_*/; do
+  suite=$(basename "$suite")
+  for run in results/guard-campaign/eval/"$suite"/{baselines,papo}/"$suite"-{trpo,ppo,papo}-s*/; do
+    [ -f "$run/progress.csv" ] || continue
+    dest="$runs/$(basename "$run")"
+    mkdir -p "$dest"
+    cp "$run/config.toml" "$run/progress.csv" "$dest/"
+  done
 done
 "$apo" report "$runs" --last "${LAST:-10}" --out "$out/report"
