@@ -6,20 +6,30 @@
 #   bash scripts/variants-report.sh [ABLATION] [OUT]   (defaults results/variants/ablation, /tmp/variants-report)
 # The held-out comparison's folder (results/variants/heldout) works too: its baselines keep their
 # names, its robust-<algos> runs become <env>-<algo>-robust.
+# ALGOS (default all) keeps only these algorithms' runs, e.g. ALGOS="apo trpo" for APO's side: the
+# report's statistics cover the environments every group has, and PAPO's cells run on fewer.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 src=${1:-results/variants/ablation}
 out=${2:-/tmp/variants-report}
 apo=${APO:-./target/release/apo}
 runs="$out/runs"
+keep() { [ -z "${ALGOS:-}" ] || [[ " $ALGOS " == *" $1 "* ]]; }
+# a run counts once its last epoch is the one its config.toml asks for (runs still going are left out)
+finished() {
+  local want
+  want=$(awk -F' = ' '$1 == "epochs" { print $2; exit }' "$1/config.toml")
+  [ -n "$want" ] && [ "$(tail -n 1 "$1/progress.csv" | cut -d, -f1)" = "$want" ]
+}
 rm -rf "$runs"
 mkdir -p "$runs"
 for cell in "$src"/*/*/; do
   name=$(basename "$cell")
   for run in "$cell"*-s[0-9]*/; do
-    [ -f "$run/progress.csv" ] || continue
+    [ -f "$run/progress.csv" ] && finished "$run" || continue
     base=$(basename "$run")
     stem=${base%-s*}
+    keep "${stem##*-}" || continue
     case $name in
       trpo|papo|ppo|baselines|baselines-*) dest="$runs/$base" ;;
       robust-*) dest="$runs/$stem-robust-${base##*-}" ;;
@@ -32,8 +42,11 @@ done
 for suite in "$src"/*_*/; do
   suite=$(basename "$suite")
   for run in results/guard-campaign/eval/"$suite"/{baselines,papo}/"$suite"-{trpo,ppo,papo}-s*/; do
-    [ -f "$run/progress.csv" ] || continue
-    dest="$runs/$(basename "$run")"
+    [ -f "$run/progress.csv" ] && finished "$run" || continue
+    base=$(basename "$run")
+    stem=${base%-s*}
+    keep "${stem##*-}" || continue
+    dest="$runs/$base"
     mkdir -p "$dest"
     cp "$run/config.toml" "$run/progress.csv" "$dest/"
   done
