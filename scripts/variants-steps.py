@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Line-search figures of the variants' ablation (docs/results/variants.md): per cell, over
-every run's epochs after the 5th, the share of full steps (accepted at try 0), the median
+every finished run's epochs after the 5th, the share of full steps (accepted at try 0), the median
 accepted try, the median KL of the step, and the rejected tries (KL / objective).
 
     python3 scripts/variants-steps.py [ABLATION]   (default results/variants/ablation)
@@ -11,6 +11,18 @@ import os
 import statistics
 import sys
 
+
+
+def epochs(run):
+    """The epochs the run's config.toml asks for (0 when it names none)."""
+    with open(os.path.join(run, "config.toml")) as f:
+        for line in f:
+            key, _, value = line.partition("=")
+            if key.strip() == "epochs":
+                return int(value)
+    return 0
+
+
 root = sys.argv[1] if len(sys.argv) > 1 else "results/variants/ablation"
 print("| env | cell | epochs | full steps | median accepted try | median KL | rejected tries: KL / objective |")
 print("|---|---|---|---|---|---|---|")
@@ -19,7 +31,10 @@ for cell in sorted(glob.glob(os.path.join(root, "*", "*"))):
     rows = []
     for path in glob.glob(os.path.join(cell, "*-s*", "progress.csv")):
         with open(path) as f:
-            rows += [r for r in csv.DictReader(f) if int(r["epoch"]) > 5]
+            run = list(csv.DictReader(f))
+        if not run or int(run[-1]["epoch"]) != epochs(os.path.dirname(path)):
+            continue  # a run still going (or stopped early) is left out
+        rows += [r for r in run if int(r["epoch"]) > 5]
     steps = [r for r in rows if r.get("line_search")]
     if not steps:
         continue
