@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Line-search figures of the variants' ablation (docs/results/variants.md): per cell, over
-every finished run's epochs after the 5th, the share of full steps (accepted at try 0), the median
+every finished run's epochs after the 5th (on a GUARD suite, TRPO is the GUARD campaign's
+evaluation runs, results/guard-campaign/eval/<suite>/baselines), the share of full steps (accepted at try 0), the median
 accepted try, the median KL of the step, and the rejected tries (KL / objective).
 
     python3 scripts/variants-steps.py [ABLATION]   (default results/variants/ablation)
@@ -26,10 +27,13 @@ def epochs(run):
 root = sys.argv[1] if len(sys.argv) > 1 else "results/variants/ablation"
 print("| env | cell | epochs | full steps | median accepted try | median KL | rejected tries: KL / objective |")
 print("|---|---|---|---|---|---|---|")
-for cell in sorted(glob.glob(os.path.join(root, "*", "*"))):
-    env, name = cell.split(os.sep)[-2:]
+cells = [(*cell.split(os.sep)[-2:], os.path.join(cell, "*-s*")) for cell in sorted(glob.glob(os.path.join(root, "*", "*")))]
+for suite in sorted({env for env, _, _ in cells if "_" in env}):
+    cells.append((suite, "trpo (campaign)", f"results/guard-campaign/eval/{suite}/baselines/{suite}-trpo-s*"))
+cells.sort(key=lambda c: c[0])
+for env, name, runs in cells:
     rows = []
-    for path in glob.glob(os.path.join(cell, "*-s*", "progress.csv")):
+    for path in glob.glob(os.path.join(runs, "progress.csv")):
         with open(path) as f:
             run = list(csv.DictReader(f))
         if not run or int(run[-1]["epoch"]) != epochs(os.path.dirname(path)):
