@@ -4,13 +4,16 @@
 
 Per environment and cell, over seeds (mean ± population std, as `apo report`): the mean, worst and CVaR 10 % return, each the
 mean over the last N epochs of the run (progress.csv's ep_ret_mean, ep_ret_min, ep_ret_cvar10),
-and P(the cell's worst return > TRPO's) with its 95 % stratified-bootstrap interval, from an
+and P(the cell's worst return > the baseline's, TRPO unless BASELINE says) with its 95 %
+stratified-bootstrap interval, from an
 `apo report` of that environment's runs alone (written to REPORT/env/<env>). Then the statistics
 over all environments from REPORT/report/statistics.json (TRPO-normalized scores): IQM and
-P(cell > TRPO) of the worst, CVaR 10 % and mean return.
+P(cell > baseline) of the worst, CVaR 10 % and mean return.
 
     python3 scripts/variants-tables.py [REPORT] [ENV ...]   (default /tmp/variants-report)
-APO (default ./target/release/apo) and LAST (default 10) as in variants-report.sh.
+APO (default ./target/release/apo) and LAST (default 10) as in variants-report.sh; BASELINE
+(default trpo) is the algorithm every cell is compared with: for PAPO's side, BASELINE=ppo on a
+report made with ALGOS="papo ppo trpo" (the statistics normalize by TRPO, so its runs stay in).
 """
 import csv
 import glob
@@ -24,6 +27,7 @@ import sys
 report = sys.argv[1] if len(sys.argv) > 1 else "/tmp/variants-report"
 apo = os.environ.get("APO", "./target/release/apo")
 last = int(os.environ.get("LAST", "10"))
+base = os.environ.get("BASELINE", "trpo")
 runs_dir = os.path.join(report, "runs")
 runs = sorted(glob.glob(os.path.join(runs_dir, "*-s[0-9]*")))
 if not runs:
@@ -51,14 +55,15 @@ def stat(values):
     return f"{statistics.fmean(values):.2f} ± {statistics.pstdev(values):.2f}"
 
 
-def versus_trpo(stats, metric):
-    """Per label other than TRPO's: P(label > TRPO) [lower, upper] of `metric`, and the IQMs."""
+def versus_base(stats, metric):
+    """Per label other than the baseline's: P(label > baseline) [lower, upper] of `metric`, and
+    the IQMs."""
     analysis = next((m["analysis"] for m in stats if m["metric"] == metric), None)
     if not analysis:
         return {}, {}
     out = {}
     for p in analysis["probability_of_improvement"]:
-        if p["y"].lower() == "trpo" and p["x"].lower() != "trpo":
+        if p["y"] == base and p["x"] != base:
             out[p["x"]] = f"{p['point']:.2f} [{p['lower']:.2f}, {p['upper']:.2f}]"
     iqm = {k: f"{v['iqm']['point']:.3f} [{v['iqm']['lower']:.3f}, {v['iqm']['upper']:.3f}]"
            for k, v in analysis["aggregates"].items()}
@@ -66,7 +71,7 @@ def versus_trpo(stats, metric):
 
 
 print(f"| env | cell | seeds | mean return, last {last} | worst return, last {last} | "
-      f"CVaR 10 %, last {last} | P(worst > TRPO's) [95 % CI] |")
+      f"CVaR 10 %, last {last} | P(worst > {base}'s) [95 % CI] |")
 print("|---|---|---|---|---|---|---|")
 for env in envs:
     cells = groups.get(env, {})
@@ -77,13 +82,13 @@ for env in envs:
     if done.returncode != 0:
         sys.exit(f"error: apo report of {env} failed:\n{done.stderr}")
     with open(os.path.join(out, "statistics.json")) as f:
-        p_worst, _ = versus_trpo(json.load(f), "worst_last")
-    for cell, cell_runs in sorted(cells.items(), key=lambda c: (c[0].startswith(("trpo", "ppo")), c[0])):
+        p_worst, _ = versus_base(json.load(f), "worst_last")
+    for cell, cell_runs in sorted(cells.items(), key=lambda c: (c[0] in ("trpo", "ppo"), c[0])):
         values = [tail_means(r) for r in cell_runs]
         cols = [stat([v[i] for v in values]) for i in range(3)]
         algo, _, variant = cell.partition("-")
         label = f"{algo} ({variant})" if variant else algo  # as `apo report` labels the group
-        p = p_worst.get(label, "" if algo == "trpo" else "–")
+        p = p_worst.get(label, "" if label == base else "–")
         print(f"| {env} | {cell} | {len(cell_runs)} | " + " | ".join(cols) + f" | {p} |")
 
 stats_path = os.path.join(report, "report", "statistics.json")
@@ -91,10 +96,9 @@ if os.path.exists(stats_path):
     with open(stats_path) as f:
         stats = json.load(f)
     print()
-    print("| cell | metric, last N | P(cell > TRPO) [95 % CI] | IQM cell | IQM TRPO |")
+    print(f"| cell | metric, last N | P(cell > {base}) [95 % CI] | IQM cell | IQM {base} |")
     print("|---|---|---|---|---|")
     for metric in ("worst_last", "cvar10_last", "mean_last"):
-        p, iqm = versus_trpo(stats, metric)
-        trpo = next((v for k, v in iqm.items() if k.lower() == "trpo"), "–")
+        p, iqm = versus_base(stats, metric)
         for label in sorted(p):
-            print(f"| {label} | {metric} | {p[label]} | {iqm.get(label, '–')} | {trpo} |")
+            print(f"| {label} | {metric} | {p[label]} | {iqm.get(label, '–')} | {iqm.get(base, '–')} |")
