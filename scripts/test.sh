@@ -16,22 +16,24 @@ fi
 export MUJOCO_DYNAMIC_LINK_DIR="$mujoco3"
 export LD_LIBRARY_PATH="$mujoco3${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 features=apo-envs/mujoco3,apo-cli/mujoco3
-cargo fmt --all -- --check
-cargo fmt --manifest-path tests/external-user/Cargo.toml -- --check
-cargo clippy --workspace --all-targets --features "$features" -- -D warnings
-cargo clippy --manifest-path tests/external-user/Cargo.toml --target-dir target -- -D warnings
+# each step prints its wall time, so a slow CI run shows where the time went
+step() { local t0=$SECONDS; "$@"; echo "== $((SECONDS - t0)) s: $*" >&2; }
+step cargo fmt --all -- --check
+step cargo fmt --manifest-path tests/external-user/Cargo.toml -- --check
+step cargo clippy --workspace --all-targets --features "$features" -- -D warnings
+step cargo clippy --manifest-path tests/external-user/Cargo.toml --target-dir target -- -D warnings
 # the libraries' documentation, every link resolved (the binaries' docs are their --help)
-RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --lib --features "$features"
-cargo test --workspace --features "$features"
+step env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --lib --features "$features"
+step cargo test --workspace --features "$features"
 # a crate outside the workspace that uses only the public API of apo-core, apo-envs and
 # apo-train (tests/external-user): the three user stories for a few epochs each, wgpu included
-cargo run --profile test -q --manifest-path tests/external-user/Cargo.toml --target-dir target -- --wgpu
+step cargo run --profile test -q --manifest-path tests/external-user/Cargo.toml --target-dir target -- --wgpu
 # apo-cli's opt-in features, built once together: data-parallel training under Open MPI's
 # mpirun (`mpi`: the binary and its `mpi_update` example, then the tests that launch them) and
 # the Atari games (`atari`: listed, trained, resumed, evaluated from the command line)
-cargo clippy -p apo-cli --features mpi,atari,mujoco3 --all-targets -- -D warnings
-cargo build -p apo-cli --features mpi,atari,mujoco3 --profile test --bin apo --example mpi_update
-cargo test -p apo-cli --features mpi,atari,mujoco3 --test mpi --test atari
+step cargo clippy -p apo-cli --features mpi,atari,mujoco3 --all-targets -- -D warnings
+step cargo build -p apo-cli --features mpi,atari,mujoco3 --profile test --bin apo --example mpi_update
+step cargo test -p apo-cli --features mpi,atari,mujoco3 --test mpi --test atari
 # the training-library examples, a few hundred environment steps each (built by `cargo test`)
-cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example train_hopper -- 2 200
-cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example custom_policy -- 5
+step cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example train_hopper -- 2 200
+step cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example custom_policy -- 5
