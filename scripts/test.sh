@@ -15,25 +15,28 @@ if [ ! -e "$mujoco3/libmujoco.so" ]; then
 fi
 export MUJOCO_DYNAMIC_LINK_DIR="$mujoco3"
 export LD_LIBRARY_PATH="$mujoco3${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
-features=apo-envs/mujoco3,apo-cli/mujoco3
+# apo-cli's opt-in features `mpi` (data-parallel training under Open MPI's mpirun: the tests
+# launch the binary and its `mpi_update` example) and `atari` (the games listed, trained,
+# resumed, evaluated from the command line) are on in every step, with the whole workspace
+# selected each time: cargo resolves dependency features per selection, so one selection
+# everywhere compiles Burn's tree once for the lints, docs and tests instead of once per step.
+features=apo-envs/mujoco3,apo-cli/mujoco3,apo-cli/mpi,apo-cli/atari
 # each step prints its wall time, so a slow CI run shows where the time went
 step() { local t0=$SECONDS; "$@"; echo "== $((SECONDS - t0)) s: $*" >&2; }
 step cargo fmt --all -- --check
 step cargo fmt --manifest-path tests/external-user/Cargo.toml -- --check
 step cargo clippy --workspace --all-targets --features "$features" -- -D warnings
 step cargo clippy --manifest-path tests/external-user/Cargo.toml --target-dir target -- -D warnings
-# the libraries' documentation, every link resolved (the binaries' docs are their --help)
-step env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --lib --features "$features"
+# the libraries' documentation, every link resolved (the binaries' docs are their --help);
+# `--examples` resolves features as the lints did (with the dev-dependencies), so the checked
+# dependencies are reused
+step env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --lib --examples --features "$features"
 step cargo test --workspace --features "$features"
 # a crate outside the workspace that uses only the public API of apo-core, apo-envs and
 # apo-train (tests/external-user): the three user stories for a few epochs each, wgpu included
 step cargo run --profile test -q --manifest-path tests/external-user/Cargo.toml --target-dir target -- --wgpu
-# apo-cli's opt-in features, built once together: data-parallel training under Open MPI's
-# mpirun (`mpi`: the binary and its `mpi_update` example, then the tests that launch them) and
-# the Atari games (`atari`: listed, trained, resumed, evaluated from the command line)
-step cargo clippy -p apo-cli --features mpi,atari,mujoco3 --all-targets -- -D warnings
-step cargo build -p apo-cli --features mpi,atari,mujoco3 --profile test --bin apo --example mpi_update
-step cargo test -p apo-cli --features mpi,atari,mujoco3 --test mpi --test atari
-# the training-library examples, a few hundred environment steps each (built by `cargo test`)
-step cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example train_hopper -- 2 200
-step cargo run --profile test -q -p apo-train --features apo-envs/mujoco3 --example custom_policy -- 5
+# the training-library examples, a few hundred environment steps each, as `cargo test` built
+# them (a `cargo run -p apo-train` would resolve features anew and rebuild the tree)
+examples="${CARGO_TARGET_DIR:-target}/debug/examples"
+step "$examples/train_hopper" 2 200
+step "$examples/custom_policy" 5

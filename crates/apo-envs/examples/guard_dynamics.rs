@@ -7,7 +7,7 @@
 //! |observation| component; it prints their means over episodes with 95 % percentile-bootstrap
 //! intervals (10 000 resamples, fixed seed) beside GUARD's figures from `docs/guard.md`
 //! ("Dynamics under random actions"), measured the same way on GUARD's engine over
-//! [`GUARD_EPISODES`] episodes, and `z`, the difference of the means in standard errors, taking
+//! `GUARD_EPISODES` episodes, and `z`, the difference of the means in standard errors, taking
 //! the spread between GUARD's episodes to be ours (GUARD's per-episode values are not kept).
 //!
 //! ```sh

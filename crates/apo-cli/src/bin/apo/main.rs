@@ -149,22 +149,22 @@ fn main() -> ExitCode {
     };
     result.unwrap_or_else(|e| {
         eprintln!("error: {e:#}");
-        if let Some(hint) = atari_hint(&e) {
+        if let Some(hint) = atari_hint(&e, cfg!(feature = "atari")) {
             eprintln!("{hint}");
         }
         ExitCode::FAILURE
     })
 }
 
-/// For an unknown `ALE/…` environment in a build without the `atari` feature: how to get the
-/// Atari games.
-fn atari_hint(error: &anyhow::Error) -> Option<&'static str> {
+/// For an unknown `ALE/…` environment in a build without the `atari` feature
+/// (`built_with_atari` false): how to get the Atari games.
+fn atari_hint(error: &anyhow::Error, built_with_atari: bool) -> Option<&'static str> {
     let unknown_game = error.chain().any(|cause| {
         matches!(cause.downcast_ref::<apo_envs::EnvError>(),
             Some(apo_envs::EnvError::Unknown { name, .. })
                 if name.get(..4).is_some_and(|ns| ns.eq_ignore_ascii_case("ALE/")))
     });
-    (unknown_game && cfg!(not(feature = "atari"))).then_some(
+    (unknown_game && !built_with_atari).then_some(
         "hint: the Atari games (`ALE/<Game>-v5`) are in builds with the `atari` feature \
          (GPL-2.0): cargo build --release -p apo-cli --features atari",
     )
@@ -189,5 +189,30 @@ fn quiet_wgpu() {
             // SAFETY: called on the main thread before any other thread is started.
             std::env::set_var("XDG_RUNTIME_DIR", &dir);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::atari_hint;
+
+    fn unknown(name: &str) -> anyhow::Error {
+        let error = apo_envs::EnvError::Unknown {
+            name: name.to_string(),
+            suggestions: Vec::new(),
+            registered: Vec::new(),
+        };
+        anyhow::Error::new(error).context("cannot build the environment")
+    }
+
+    #[test]
+    fn atari_hint_only_for_unknown_ale_names_in_builds_without_atari() {
+        let hint = atari_hint(&unknown("ALE/Pong-v5"), false).expect("a hint");
+        assert!(hint.contains("--features atari"), "{hint}");
+        assert!(atari_hint(&unknown("ale/pong-v5"), false).is_some());
+        // with the games built in, an unknown ALE name is a typo, not a missing feature
+        assert_eq!(atari_hint(&unknown("ALE/Pong-v5"), true), None);
+        assert_eq!(atari_hint(&unknown("CartPol-v1"), false), None);
+        assert_eq!(atari_hint(&anyhow::anyhow!("ALE/Pong-v5"), false), None);
     }
 }
