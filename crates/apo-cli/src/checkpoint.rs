@@ -31,6 +31,7 @@ use burn::tensor::backend::Backend;
 use serde::{Deserialize, Serialize};
 
 use crate::atomic;
+use crate::config::RunConfig;
 
 /// The checkpoint format this version writes (format 1 had no manifest; it is still read,
 /// with a warning; a format-2 checkpoint without its manifest is refused).
@@ -96,6 +97,18 @@ pub struct Shapes {
     pub hidden: Vec<usize>,
     /// Whether the observations are normalized (the normalizer is then in `state.json`).
     pub normalize_obs: bool,
+}
+
+impl Shapes {
+    /// The shapes of `config`'s networks on an environment with `observation_dim` and `action`.
+    pub fn of(config: &RunConfig, observation_dim: usize, action: ActionKind) -> Self {
+        Self {
+            observation_dim,
+            action,
+            hidden: config.train.hidden.clone(),
+            normalize_obs: config.train.normalize_obs,
+        }
+    }
 }
 
 impl fmt::Display for Shapes {

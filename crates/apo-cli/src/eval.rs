@@ -10,9 +10,8 @@ use burn::backend::NdArray;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
-use crate::checkpoint::{self, Which};
+use crate::checkpoint::{self, Shapes, Which};
 use crate::config::RunConfig;
-use crate::trainer::shapes;
 use apo_train::action_kind;
 
 /// Returns of evaluation episodes.
@@ -133,7 +132,7 @@ impl LoadedRun {
         let state = checkpoint::load(
             &from,
             &mut learner,
-            &shapes(&config, obs_dim, action),
+            &Shapes::of(&config, obs_dim, action),
             &device,
         )?;
         let policy = HostPolicy::new(&learner.policy_on::<NdArray>(&device), action);

@@ -6,7 +6,8 @@
 //! `train.log`, `apo.lock`, `checkpoints`, TensorBoard's `events.out.tfevents.*` files); an
 //! entry is listed only when apo created it, never when it was there before. Inside
 //! `checkpoints/` apo owns the checkpoint folders it names (`latest`, `previous`,
-//! `epoch-<N>`, `.tmp-*`) and, inside them, the files a checkpoint consists of. Every removal
+//! `epoch-<N>`, `.tmp-*`) and, inside them, the files a checkpoint consists of; inside
+//! `videos/`, the videos it names (`epoch-<N>.gif`, `render.gif`). Every removal
 //! goes through [`crate::removal::remove_created`]: it deletes the named *files* (never a directory with what
 //! is in it) and removes a folder only once it is empty, so a user's file anywhere under a run
 //! directory survives `--force`, a failed start, a sweep re-run and checkpoint rotation.
@@ -40,6 +41,8 @@ pub const LOG: &str = "train.log";
 pub const LOCK: &str = "apo.lock";
 /// The checkpoints folder.
 pub const CHECKPOINTS: &str = crate::checkpoint::FOLDER;
+/// The folder of a run's videos.
+pub const VIDEOS: &str = "videos";
 /// TensorBoard event files start with this.
 pub const EVENTS_PREFIX: &str = "events.out.tfevents.";
 /// The marker of a run directory: the entries apo created in it, one per line.
@@ -209,8 +212,8 @@ pub fn remove_run_files(
     if listed.contains(CHECKPOINTS) {
         crate::checkpoint::remove_checkpoints(&dir.join(CHECKPOINTS))?;
     }
-    if listed.contains(crate::video::VIDEOS) {
-        crate::video::remove_videos(&dir.join(crate::video::VIDEOS))?;
+    if listed.contains(VIDEOS) {
+        remove_videos(&dir.join(VIDEOS))?;
     }
     let mut names: Vec<String> = Vec::new();
     for name in listed.iter().filter(|n| released || n.as_str() != LOCK) {
@@ -386,9 +389,70 @@ impl NewRunDir {
     }
 }
 
+/// The file name of a video apo writes into a run's `videos/`: `epoch-<N>.gif` (training)
+/// or `render.gif` (`apo render`'s default).
+fn is_video_name(name: &str) -> bool {
+    name == "render.gif"
+        || name
+            .strip_prefix("epoch-")
+            .and_then(|n| n.strip_suffix(".gif"))
+            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// Removes the videos apo wrote into the run's video folder `root` (and their temporary
+/// files), then `root` when nothing else is left in it: a user's file there stays, and so does
+/// the folder.
+///
+/// # Errors
+/// When a video cannot be removed.
+pub fn remove_videos(root: &Path) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return Ok(());
+    };
+    let mut names = Vec::new();
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if is_video_name(&name) {
+            names.push(crate::atomic::temp_name(&name));
+            names.push(name);
+        }
+    }
+    crate::removal::remove_created(root, &names, true)?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_the_videos_apo_names_are_removed() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let root = dir.path().join(VIDEOS);
+        std::fs::create_dir(&root).expect("videos/");
+        for name in [
+            "epoch-3.gif",
+            "epoch-10.gif",
+            "render.gif",
+            "mine.gif",
+            "epoch-x.gif",
+        ] {
+            std::fs::write(root.join(name), b"GIF89a").expect("file");
+        }
+        remove_videos(&root).expect("removed");
+        let mut left: Vec<_> = std::fs::read_dir(&root)
+            .expect("kept: it holds files of the user")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["epoch-x.gif", "mine.gif"]);
+        for name in &left {
+            std::fs::remove_file(root.join(name)).expect("remove");
+        }
+        std::fs::write(root.join("epoch-4.gif"), b"GIF89a").expect("file");
+        remove_videos(&root).expect("removed");
+        assert!(!root.exists(), "an emptied folder goes");
+    }
 
     #[test]
     fn claims_list_only_entries_that_did_not_exist_and_removal_spares_the_rest() {

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{bail, Context};
 use apo_core::inference::HostPolicy;
-use apo_core::{ActionKind, Comm, MlpPolicyConfig};
+use apo_core::{Comm, MlpPolicyConfig};
 use apo_train::{HostActor, TrainError, Trainer};
 use burn::backend::NdArray;
 use burn::tensor::backend::Backend;
@@ -15,8 +15,9 @@ use burn::tensor::backend::Backend;
 use crate::checkpoint::{self, Shapes, TrainState, Which};
 use crate::config::RunConfig;
 use crate::progress::{self, ProgressRow};
+use crate::run_dir::VIDEOS;
 use crate::tensorboard::{row_scalars, EventWriter};
-use crate::video::{EpochVideos, TENSORBOARD_VIDEO_BYTES, VIDEOS};
+use crate::video::{EpochVideos, TENSORBOARD_VIDEO_BYTES};
 
 /// How [`train`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -36,16 +37,6 @@ pub trait Observer {
     fn steps(&mut self, _env_steps: u64) {}
     /// Called after each epoch with its row.
     fn epoch(&mut self, row: &ProgressRow, epochs: usize);
-}
-
-/// The shapes of `config`'s networks on an environment with `observation_dim` and `action`.
-pub fn shapes(config: &RunConfig, observation_dim: usize, action: ActionKind) -> Shapes {
-    Shapes {
-        observation_dim,
-        action,
-        hidden: config.train.hidden.clone(),
-        normalize_obs: config.train.normalize_obs,
-    }
 }
 
 /// How a process takes part in a run.
@@ -101,7 +92,7 @@ pub fn train<B: Backend>(
         trainer.distribute(comm.clone())?;
     }
     let writer = comm.rank() == 0;
-    let shapes = shapes(config, trainer.observation_dim(), trainer.action());
+    let shapes = Shapes::of(config, trainer.observation_dim(), trainer.action());
     let save = |trainer: &Trainer<B, _, _>, keep: bool| -> anyhow::Result<TrainState> {
         let state = TrainState::new(trainer.state().clone()).with_ranks(ranks);
         if writer {

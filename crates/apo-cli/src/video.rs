@@ -18,6 +18,7 @@ use crate::atomic;
 use crate::checkpoint::Which;
 use crate::config::RunConfig;
 use crate::eval::{Episodes, EvalResult, LoadedRun, Moment};
+use crate::run_dir::VIDEOS;
 
 /// A video's container, from its file name's extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -533,41 +534,6 @@ impl EpochVideos {
     }
 }
 
-/// The folder of a run's videos.
-pub const VIDEOS: &str = "videos";
-
-/// The file name of a video apo writes into a run's `videos/`: `epoch-<N>.gif` (training)
-/// or `render.gif` (`apo render`'s default).
-fn is_video_name(name: &str) -> bool {
-    name == "render.gif"
-        || name
-            .strip_prefix("epoch-")
-            .and_then(|n| n.strip_suffix(".gif"))
-            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
-}
-
-/// Removes the videos apo wrote into the run's video folder `root` (and their temporary
-/// files), then `root` when nothing else is left in it: a user's file there stays, and so does
-/// the folder.
-///
-/// # Errors
-/// When a video cannot be removed.
-pub fn remove_videos(root: &Path) -> anyhow::Result<()> {
-    let Ok(entries) = std::fs::read_dir(root) else {
-        return Ok(());
-    };
-    let mut names = Vec::new();
-    for entry in entries.flatten() {
-        let name = entry.file_name().to_string_lossy().into_owned();
-        if is_video_name(&name) {
-            names.push(atomic::temp_name(&name));
-            names.push(name);
-        }
-    }
-    crate::removal::remove_created(root, &names, true)?;
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -643,35 +609,6 @@ mod tests {
         );
         let left: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
         assert!(left.is_empty(), "{left:?}");
-    }
-
-    #[test]
-    fn only_the_videos_apo_names_are_removed() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let root = dir.path().join(VIDEOS);
-        std::fs::create_dir(&root).expect("videos/");
-        for name in [
-            "epoch-3.gif",
-            "epoch-10.gif",
-            "render.gif",
-            "mine.gif",
-            "epoch-x.gif",
-        ] {
-            std::fs::write(root.join(name), b"GIF89a").expect("file");
-        }
-        remove_videos(&root).expect("removed");
-        let mut left: Vec<_> = std::fs::read_dir(&root)
-            .expect("kept: it holds files of the user")
-            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-            .collect();
-        left.sort();
-        assert_eq!(left, ["epoch-x.gif", "mine.gif"]);
-        for name in &left {
-            std::fs::remove_file(root.join(name)).expect("remove");
-        }
-        std::fs::write(root.join("epoch-4.gif"), b"GIF89a").expect("file");
-        remove_videos(&root).expect("removed");
-        assert!(!root.exists(), "an emptied folder goes");
     }
 
     #[test]

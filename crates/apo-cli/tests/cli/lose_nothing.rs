@@ -851,7 +851,7 @@ fn a_checkpoint_with_non_finite_parameters_is_refused() {
         0,
     )
     .expect("learner");
-    let shapes = apo_cli::trainer::shapes(&config, 4, action);
+    let shapes = apo_cli::checkpoint::Shapes::of(&config, 4, action);
     let from = checkpoint::locate(&run, &Which::Latest)
         .expect("locate")
         .expect("latest");

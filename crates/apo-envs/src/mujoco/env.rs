@@ -10,7 +10,8 @@ use rand_distr::StandardNormal;
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
 use super::physics::{default_physics, Physics};
-use super::render::{SceneRenderer, TrackView};
+use super::render::SceneRenderer;
+use super::scene::TrackView;
 use crate::env::{Action, Env, StepInfo, Transition};
 use crate::render::{Camera, Frame, RenderError};
 use crate::rng::{entropy_rng, reseed, EnvRng};
@@ -141,8 +142,8 @@ pub struct MujocoEnv<T: Task> {
     observation_space: Space,
     action_space: Space,
     dt: f64,
-    /// Made by the first [`Env::render`].
-    renderer: Option<SceneRenderer>,
+    /// Its OpenGL context and scene, made by the first [`Env::render`].
+    renderer: SceneRenderer,
 }
 
 impl<T: Task> std::fmt::Debug for MujocoEnv<T> {
@@ -216,7 +217,7 @@ impl<T: Task> MujocoEnv<T> {
                 high,
             },
             dt,
-            renderer: None,
+            renderer: SceneRenderer::default(),
         })
     }
 
@@ -320,14 +321,8 @@ impl<T: Task> Env for MujocoEnv<T> {
     }
 
     fn render(&mut self, camera: &Camera, frame: &mut Frame) -> Result<(), RenderError> {
-        SceneRenderer::render(
-            &mut self.renderer,
-            &mut self.data,
-            camera,
-            T::TRACK,
-            &[],
-            frame,
-        )
+        self.renderer
+            .render(&mut self.data, camera, T::TRACK, &[], frame)
     }
 }
 

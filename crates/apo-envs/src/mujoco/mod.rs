@@ -39,6 +39,7 @@ pub(crate) mod physics;
 mod render;
 #[cfg(feature = "mujoco3")]
 mod render3;
+mod scene;
 pub mod tasks;
 
 pub use bench::{steps_per_second, vector_steps_per_second};
@@ -48,7 +49,7 @@ pub use library::{check_library, EXPECTED_VERSION, LIBRARY_ENV_VAR};
 pub use model::{ContactForce, Data, Dynamics, Model, ObjKind, Warning};
 pub(crate) use physics::with_physics;
 pub use physics::{default_physics, set_default_physics, Physics};
-pub use render::TrackView;
+pub use scene::TrackView;
 
 use crate::env::Env;
 use crate::error::EnvError;

@@ -24,6 +24,12 @@ use super::ffi::{mjData, mjModel};
 use super::gl::GlContext;
 use super::library;
 use super::model::Data;
+#[cfg(feature = "mujoco3")]
+use super::render3::Mj3Renderer;
+use super::scene::{
+    camera_id, copy_flipped, grid, Decor, TrackView, CAMERA_FIXED, CAMERA_TRACKING, CATEGORY_ALL,
+    FONT_SCALE, FRAMEBUFFER_WINDOW, MAX_GEOMS,
+};
 use crate::render::{Camera, Frame, RenderError};
 
 /// `sizeof(mjvScene)` in MuJoCo 2.2.2.
@@ -52,18 +58,6 @@ const CAMERA_DISTANCE: usize = 40;
 const CAMERA_AZIMUTH: usize = 48;
 const CAMERA_ELEVATION: usize = 56;
 
-/// `mjCAMERA_TRACKING`, `mjCAMERA_FIXED`.
-pub(super) const CAMERA_TRACKING: c_int = 1;
-pub(super) const CAMERA_FIXED: c_int = 2;
-/// `mjCAT_ALL`: static, dynamic and decorative geoms.
-pub(super) const CATEGORY_ALL: c_int = 7;
-/// `mjFB_WINDOW`: the context's default framebuffer (the EGL pbuffer, the OSMesa buffer).
-pub(super) const FRAMEBUFFER_WINDOW: c_int = 0;
-/// `mjFONTSCALE_100`.
-pub(super) const FONT_SCALE: c_int = 100;
-/// Geoms the scene holds: the model's and the decor.
-pub(super) const MAX_GEOMS: c_int = 2000;
-
 /// `mjrRect`.
 #[repr(C)]
 #[derive(Clone, Copy)]
@@ -72,103 +66,6 @@ struct Rect {
     bottom: c_int,
     width: c_int,
     height: c_int,
-}
-
-/// The shape of a [`Decor`] (`mjtGeom`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Shape {
-    /// `size[0]` is the radius.
-    Sphere = 2,
-    /// `size[0]` is the radius, `size[1]` the half-height; the axis is vertical.
-    Cylinder = 5,
-    /// `size` holds the half-lengths along x, y and z.
-    Box = 6,
-}
-
-/// A shape drawn into the scene that is not a geom of the model.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Decor {
-    /// The shape.
-    pub(crate) shape: Shape,
-    /// Its sizes, as MuJoCo's geoms take them.
-    pub(crate) size: [f64; 3],
-    /// Its centre, world frame.
-    pub(crate) pos: [f64; 3],
-    /// Its colour, red, green, blue, alpha in `0..=1`.
-    pub(crate) rgba: [f32; 4],
-}
-
-/// How [`Camera::Track`] frames the scene: a camera at `distance` metres from the centre of
-/// mass of body `body`'s subtree, turned by `azimuth` and `elevation` degrees (MuJoCo's
-/// tracking camera; azimuth 90 looks along +y, so +x points right), over a grid of lines on
-/// the floor one metre apart when `grid` (so that the ground is seen to move).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TrackView {
-    /// The body followed (0, the world, follows the whole model's centre of mass).
-    pub body: usize,
-    /// Distance from the followed point, in metres.
-    pub distance: f64,
-    /// Degrees around the vertical axis.
-    pub azimuth: f64,
-    /// Degrees above (negative: looking down) the horizontal.
-    pub elevation: f64,
-    /// Draw the floor grid (at height 0).
-    pub grid: bool,
-}
-
-impl TrackView {
-    /// Follows body 1 (a robot's root) from the side (the robot's +x to the right), a little
-    /// from above.
-    pub const SIDE: TrackView = TrackView {
-        body: 1,
-        distance: 3.5,
-        azimuth: 90.0,
-        elevation: -20.0,
-        grid: true,
-    };
-
-    /// [`TrackView::SIDE`] at `distance` metres.
-    pub const fn side(distance: f64) -> TrackView {
-        TrackView {
-            distance,
-            ..TrackView::SIDE
-        }
-    }
-}
-
-/// Lines of the floor grid on each side of the followed point.
-const GRID_LINES: i32 = 12;
-
-/// The floor grid's lines around `centre` (x, y), one metre apart, fixed in the world: thin
-/// boxes along y at whole x, and along x at whole y.
-pub(super) fn grid(centre: [f64; 3]) -> impl Iterator<Item = Decor> {
-    let (cx, cy) = (centre[0].round(), centre[1].round());
-    let half = f64::from(GRID_LINES);
-    let rgba = [0.3, 0.3, 0.3, 0.5];
-    (-GRID_LINES..=GRID_LINES).flat_map(move |i| {
-        let i = f64::from(i);
-        [
-            Decor {
-                shape: Shape::Box,
-                size: [0.01, half, 0.001],
-                pos: [cx + i, cy, 0.001],
-                rgba,
-            },
-            Decor {
-                shape: Shape::Box,
-                size: [half, 0.01, 0.001],
-                pos: [cx, cy + i, 0.001],
-                rgba,
-            },
-        ]
-    })
-}
-
-impl Default for TrackView {
-    /// [`TrackView::SIDE`].
-    fn default() -> TrackView {
-        TrackView::SIDE
-    }
 }
 
 /// The renderer functions of MuJoCo 2.2.2 (mujoco.h), from the library the physics uses.
@@ -292,37 +189,28 @@ impl Opaque {
 }
 
 /// One environment's renderer, for the physics its data runs on: an OpenGL context of the
-/// frame's size and MuJoCo's scene and OpenGL resources for its model. Remade when the frame
-/// size or the model changes.
-pub(crate) enum SceneRenderer {
+/// frame's size and MuJoCo's scene and OpenGL resources for its model. Empty until the first
+/// render; remade when the frame size or the model changes.
+#[derive(Debug, Default)]
+pub(crate) struct SceneRenderer {
     /// MuJoCo 2.2.2's renderer.
-    Mj2(Mj2Renderer),
+    mj2: Option<Mj2Renderer>,
     /// MuJoCo 3.17's renderer (`--physics mujoco3`).
     #[cfg(feature = "mujoco3")]
-    Mj3(super::render3::Mj3Renderer),
-}
-
-impl std::fmt::Debug for SceneRenderer {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            SceneRenderer::Mj2(r) => r.fmt(f),
-            #[cfg(feature = "mujoco3")]
-            SceneRenderer::Mj3(r) => r.fmt(f),
-        }
-    }
+    mj3: Option<Mj3Renderer>,
 }
 
 impl SceneRenderer {
     /// Renders `data`'s state seen from `camera` (Track as `track` says), with `decor`
-    /// added, into `frame`, with the renderer of `data`'s physics, remaking `slot`'s renderer
-    /// when the physics, the frame size or the model changed.
+    /// added, into `frame`, with the renderer of `data`'s physics, remaking it when the frame
+    /// size or the model changed.
     ///
     /// # Errors
     /// [`RenderError::UnknownCamera`] for a camera name the model lacks;
     /// [`RenderError::NoDisplay`] when no OpenGL context could be made;
     /// [`RenderError::Failed`] when the renderer's functions are missing.
     pub(crate) fn render(
-        slot: &mut Option<SceneRenderer>,
+        &mut self,
         data: &mut Data,
         camera: &Camera,
         track: TrackView,
@@ -330,13 +218,11 @@ impl SceneRenderer {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         if let Some((model, raw)) = data.mj2_raw() {
-            return Mj2Renderer::render(slot, model, raw, camera, track, decor, frame);
+            return Mj2Renderer::render(&mut self.mj2, model, raw, camera, track, decor, frame);
         }
         #[cfg(feature = "mujoco3")]
         if let Some((model, raw)) = data.mj3_raw() {
-            return super::render3::Mj3Renderer::render(
-                slot, model, raw, camera, track, decor, frame,
-            );
+            return Mj3Renderer::render(&mut self.mj3, model, raw, camera, track, decor, frame);
         }
         Err(RenderError::Failed(
             "this physics has no renderer in this build".into(),
@@ -400,9 +286,10 @@ impl Mj2Renderer {
         Ok(renderer)
     }
 
-    /// [`SceneRenderer::render`] of MuJoCo 2.2.2's `model` and `data`.
+    /// [`SceneRenderer::render`] of MuJoCo 2.2.2's `model` and `data`, with the renderer in
+    /// `slot` or, when it does not fit them, a new one.
     fn render(
-        slot: &mut Option<SceneRenderer>,
+        slot: &mut Option<Mj2Renderer>,
         model: *const mjModel,
         data: *mut mjData,
         camera: &Camera,
@@ -413,13 +300,12 @@ impl Mj2Renderer {
         // SAFETY: `model` is the live model of `data`.
         let fixed = camera_id(camera, || camera_names(unsafe { &*model }))?;
         let size = (frame.width(), frame.height());
-        let current =
-            matches!(slot, Some(SceneRenderer::Mj2(r)) if r.gl.size() == size && r.model == model);
+        let current = matches!(slot, Some(r) if r.gl.size() == size && r.model == model);
         if !current {
             *slot = None; // free the old context before making the new one
-            *slot = Some(SceneRenderer::Mj2(Mj2Renderer::new(model, size.0, size.1)?));
+            *slot = Some(Mj2Renderer::new(model, size.0, size.1)?);
         }
-        let Some(SceneRenderer::Mj2(renderer)) = slot.as_mut() else {
+        let Some(renderer) = slot.as_mut() else {
             return Err(RenderError::Failed("no renderer".into()));
         };
         renderer.draw(model, data, fixed, track, decor, frame)
@@ -538,45 +424,6 @@ impl Drop for Mj2Renderer {
                 (self.api.free_scene)(self.scene.ptr());
             }
             self.gl.release();
-        }
-    }
-}
-
-/// Copies MuJoCo's pixels (RGB, rows from the bottom) into `frame` (rows from the top).
-pub(super) fn copy_flipped(pixels: &[u8], frame: &mut Frame) {
-    let row = 3 * frame.width() as usize;
-    for (to, from) in frame
-        .rgb_mut()
-        .chunks_exact_mut(row)
-        .zip(pixels.chunks_exact(row).rev())
-    {
-        to.copy_from_slice(from);
-    }
-}
-
-/// The camera to render from: `None` for [`Camera::Track`], `Some(None)` for the free
-/// camera, `Some(Some(id))` for the model's camera `id`, among the model's camera `names`
-/// (in id order).
-pub(super) fn camera_id(
-    camera: &Camera,
-    names: impl FnOnce() -> Vec<String>,
-) -> Result<Option<Option<c_int>>, RenderError> {
-    match camera {
-        Camera::Track => Ok(None),
-        Camera::Free => Ok(Some(None)),
-        Camera::Named(name) => {
-            let names = names();
-            match names.iter().position(|n| n == name) {
-                Some(id) => Ok(Some(Some(id as c_int))),
-                None => Err(RenderError::UnknownCamera {
-                    name: name.clone(),
-                    available: ["track", "free"]
-                        .into_iter()
-                        .map(String::from)
-                        .chain(names)
-                        .collect(),
-                }),
-            }
         }
     }
 }

@@ -1,5 +1,5 @@
 //! MuJoCo 3.17's renderer for the `mujoco3` physics (cargo feature `mujoco3`): the scene of
-//! [`super::render`] — the tracking camera, the floor grid, the tasks' decor — drawn by the
+//! [`super::scene`] — the tracking camera, the floor grid, the tasks' decor — drawn by the
 //! renderer of the library the physics runs on (`mjv_updateScene`, `mjr_render`,
 //! `mjr_readPixels`), on the same headless OpenGL context ([`super::gl`]).
 //!
@@ -11,9 +11,9 @@ use std::ffi::{c_int, CStr};
 use mujoco_rs::mujoco_c as c;
 
 use super::gl::GlContext;
-use super::render::{
-    camera_id, copy_flipped, grid, Decor, SceneRenderer, TrackView, CAMERA_FIXED, CAMERA_TRACKING,
-    CATEGORY_ALL, FONT_SCALE, FRAMEBUFFER_WINDOW, MAX_GEOMS,
+use super::scene::{
+    camera_id, copy_flipped, grid, Decor, TrackView, CAMERA_FIXED, CAMERA_TRACKING, CATEGORY_ALL,
+    FONT_SCALE, FRAMEBUFFER_WINDOW, MAX_GEOMS,
 };
 use crate::render::{Camera, Frame, RenderError};
 
@@ -88,9 +88,10 @@ impl Mj3Renderer {
         Ok(renderer)
     }
 
-    /// [`SceneRenderer::render`] of MuJoCo 3.17's `model` and `data`.
+    /// [`super::render::SceneRenderer::render`] of MuJoCo 3.17's `model` and `data`, with the
+    /// renderer in `slot` or, when it does not fit them, a new one.
     pub(super) fn render(
-        slot: &mut Option<SceneRenderer>,
+        slot: &mut Option<Mj3Renderer>,
         model: *const c::mjModel,
         data: *mut c::mjData,
         camera: &Camera,
@@ -101,13 +102,12 @@ impl Mj3Renderer {
         // SAFETY: `model` is the live model of `data`.
         let fixed = camera_id(camera, || camera_names(unsafe { &*model }))?;
         let size = (frame.width(), frame.height());
-        let current =
-            matches!(slot, Some(SceneRenderer::Mj3(r)) if r.gl.size() == size && r.model == model);
+        let current = matches!(slot, Some(r) if r.gl.size() == size && r.model == model);
         if !current {
             *slot = None; // free the old context before making the new one
-            *slot = Some(SceneRenderer::Mj3(Mj3Renderer::new(model, size.0, size.1)?));
+            *slot = Some(Mj3Renderer::new(model, size.0, size.1)?);
         }
-        let Some(SceneRenderer::Mj3(renderer)) = slot.as_mut() else {
+        let Some(renderer) = slot.as_mut() else {
             return Err(RenderError::Failed("no renderer".into()));
         };
         renderer.draw(data, fixed, track, decor, frame)

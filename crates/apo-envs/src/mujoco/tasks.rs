@@ -6,7 +6,7 @@
 use super::env::{uniform, ResetNoise, Sizes, StepContext, Task};
 use super::error::MujocoError;
 use super::model::{Data, Model, ObjKind};
-use super::render::TrackView;
+use super::scene::TrackView;
 use crate::rng::EnvRng;
 
 /// Writes consecutive values into an observation buffer.

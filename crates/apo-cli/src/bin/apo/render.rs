@@ -6,7 +6,8 @@ use std::sync::atomic::Ordering;
 
 use anyhow::Context;
 use apo_cli::checkpoint::Which;
-use apo_cli::video::{render_run, RenderOptions, VIDEOS};
+use apo_cli::run_dir::VIDEOS;
+use apo_cli::video::{render_run, RenderOptions};
 use apo_envs::Camera;
 
 use crate::signals::{interrupted_status, Signals};

@@ -24,7 +24,8 @@ use crate::env::{Action, Env, Transition};
 use crate::mujoco::env::transition;
 use crate::mujoco::error::MujocoError;
 use crate::mujoco::model::{Data, Model, ObjKind};
-use crate::mujoco::render::{Decor, SceneRenderer, Shape, TrackView};
+use crate::mujoco::render::SceneRenderer;
+use crate::mujoco::scene::{Decor, Shape, TrackView};
 use crate::render::{Camera, Frame, RenderError};
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
@@ -205,8 +206,8 @@ pub struct GuardEnv {
     placed: Vec<Placed>,
     observation_space: Space,
     action_space: Space,
-    /// Made by the first [`Env::render`].
-    renderer: Option<SceneRenderer>,
+    /// Its OpenGL context and scene, made by the first [`Env::render`].
+    renderer: SceneRenderer,
 }
 
 impl std::fmt::Debug for GuardEnv {
@@ -350,7 +351,7 @@ impl GuardEnv {
             placed: Vec::with_capacity(16),
             observation_space: Space::uniform_box(obs_dim, f32::NEG_INFINITY, f32::INFINITY),
             action_space: Space::uniform_box(robot.action_dim(), -1.0, 1.0),
-            renderer: None,
+            renderer: SceneRenderer::default(),
         })
     }
 
@@ -864,13 +865,7 @@ impl Env for GuardEnv {
             elevation: -55.0,
             grid: true,
         };
-        SceneRenderer::render(
-            &mut self.renderer,
-            &mut self.data,
-            camera,
-            track,
-            &decor,
-            frame,
-        )
+        self.renderer
+            .render(&mut self.data, camera, track, &decor, frame)
     }
 }

@@ -18,7 +18,8 @@ use crate::env::{Action, Env, Transition};
 use crate::mujoco::env::{shared_model, transition};
 use crate::mujoco::error::MujocoError;
 use crate::mujoco::model::{Data, ObjKind};
-use crate::mujoco::render::{Decor, SceneRenderer, Shape, TrackView};
+use crate::mujoco::render::SceneRenderer;
+use crate::mujoco::scene::{Decor, Shape, TrackView};
 use crate::render::{Camera, Frame, RenderError};
 use crate::rng::{entropy_rng, reseed, EnvRng};
 use crate::space::Space;
@@ -211,8 +212,8 @@ pub struct HandEnv {
     goal: Vec<f64>,
     observation_space: Space,
     action_space: Space,
-    /// Made by the first [`Env::render`].
-    renderer: Option<SceneRenderer>,
+    /// Its OpenGL context and scene, made by the first [`Env::render`].
+    renderer: SceneRenderer,
 }
 
 impl std::fmt::Debug for HandEnv {
@@ -363,7 +364,7 @@ impl HandEnv {
             goal: vec![0.0; task.goal_dim()],
             observation_space: Space::uniform_box(obs_dim, f32::NEG_INFINITY, f32::INFINITY),
             action_space: Space::uniform_box(ACTIONS, -1.0, 1.0),
-            renderer: None,
+            renderer: SceneRenderer::default(),
         };
         hand.restore_start();
         hand.data.forward();
@@ -799,14 +800,8 @@ impl Env for HandEnv {
             elevation: -25.0,
             grid: false,
         };
-        SceneRenderer::render(
-            &mut self.renderer,
-            &mut self.data,
-            camera,
-            track,
-            &decor,
-            frame,
-        )
+        self.renderer
+            .render(&mut self.data, camera, track, &decor, frame)
     }
 }
 
