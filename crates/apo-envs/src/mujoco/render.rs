@@ -1,9 +1,9 @@
 //! MuJoCo's own renderer on a headless OpenGL context ([`super::gl`]): what
 //! [`crate::Env::render`] of the MuJoCo environments draws with.
 //!
-//! A [`SceneRenderer`] belongs to one environment and is made the first time it renders: it
-//! opens the OpenGL context, makes MuJoCo's scene (`mjv_makeScene`) and its OpenGL resources
-//! (`mjr_makeContext`) for the environment's model. Each frame then runs `mjv_updateScene` on
+//! A [`SceneRenderer`] belongs to one environment and holds nothing until the first render,
+//! which opens the OpenGL context, makes MuJoCo's scene (`mjv_makeScene`) and its OpenGL
+//! resources (`mjr_makeContext`) for the environment's model. Each frame then runs `mjv_updateScene` on
 //! the environment's data, adds the task's [`Decor`] (what the simulation does not hold as
 //! geoms: GUARD's goal, hazards and robbers, the reach targets of the hand), renders into the
 //! context's buffer (`mjr_render`) and reads the pixels back (`mjr_readPixels`). Training
