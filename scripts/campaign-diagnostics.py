@@ -2,7 +2,7 @@
 """How each algorithm of the GUARD campaign steps (docs/results/guard-campaign.md): per suite and
 algorithm, the proximal epoch's Adam steps (`pi_steps`), the step's KL (`kl`) and the policy's
 entropy (`entropy`) of the runs' progress.csv, averaged over the last LAST epochs (default 20)
-and then over seeds; only finished runs (last epoch = EPOCHS, default 100) count.
+and then over seeds; only finished runs (last epoch = the epochs of the run's config.toml) count.
     python3 scripts/campaign-diagnostics.py [SUITE ...]   (default: every suite under
                                                           results/guard-campaign/eval)
 CAMPAIGN and ROBUST name the campaign's and the robust column's folders, as in
@@ -12,11 +12,11 @@ import glob
 import os
 import statistics
 import sys
+import tomllib
 
 campaign = os.environ.get("CAMPAIGN", "results/guard-campaign")
 robust = os.environ.get("ROBUST", "results/variants/ablation")
 last = int(os.environ.get("LAST", "20"))
-epochs = int(os.environ.get("EPOCHS", "100"))
 columns = ["pi_steps", "kl", "entropy"]
 
 
@@ -32,10 +32,16 @@ def cells(suite):
     }
 
 
+def epochs(path):
+    """The epochs the run's config.toml asks for (None when it names none)."""
+    with open(os.path.join(path, "config.toml"), "rb") as f:
+        return tomllib.load(f).get("epochs")
+
+
 def run_means(path):
     with open(os.path.join(path, "progress.csv"), newline="") as f:
         rows = list(csv.DictReader(f))
-    if not rows or int(rows[-1]["epoch"]) != epochs:
+    if not rows or int(rows[-1]["epoch"]) != epochs(path):
         return None
     means = {}
     for c in columns:
