@@ -358,7 +358,15 @@ fn bad_input_gets_clear_errors() {
     // an Atari game in a build without the `atari` feature: how to get one; in a build with
     // it (as CI's), a misspelt game is a typo: the error lists the games and gives no hint
     if cfg!(feature = "atari") {
-        let err = fails(&["train", "--algo", "ppo", "--env", "ALE/Pongg-v5", "--out", o]);
+        let err = fails(&[
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "ALE/Pongg-v5",
+            "--out",
+            o,
+        ]);
         assert!(
             err.contains("unknown environment `ALE/Pongg-v5`")
                 && err.contains("`ALE/Pong-v5`")
