@@ -7,12 +7,12 @@ and then over seeds; only finished runs (last epoch = the epochs of the run's co
                                                           results/guard-campaign/eval)
 CAMPAIGN and ROBUST name the campaign's and the robust column's folders, as in
 scripts/campaign-report.sh."""
-import csv
 import glob
 import os
 import statistics
 import sys
-import tomllib
+
+from apo_runs import finished_rows
 
 campaign = os.environ.get("CAMPAIGN", "results/guard-campaign")
 robust = os.environ.get("ROBUST", "results/variants/ablation")
@@ -32,16 +32,9 @@ def cells(suite):
     }
 
 
-def epochs(path):
-    """The epochs the run's config.toml asks for (None when it names none)."""
-    with open(os.path.join(path, "config.toml"), "rb") as f:
-        return tomllib.load(f).get("epochs")
-
-
 def run_means(path):
-    with open(os.path.join(path, "progress.csv"), newline="") as f:
-        rows = list(csv.DictReader(f))
-    if not rows or int(rows[-1]["epoch"]) != epochs(path):
+    rows = finished_rows(path)
+    if rows is None:
         return None
     means = {}
     for c in columns:

@@ -6,22 +6,12 @@ accepted try, the median KL of the step, and the rejected tries (KL / objective)
 
     python3 scripts/variants-steps.py [ABLATION]   (default results/variants/ablation)
 """
-import csv
 import glob
 import os
 import statistics
 import sys
 
-
-
-def epochs(run):
-    """The epochs the run's config.toml asks for (0 when it names none)."""
-    with open(os.path.join(run, "config.toml")) as f:
-        for line in f:
-            key, _, value = line.partition("=")
-            if key.strip() == "epochs":
-                return int(value)
-    return 0
+from apo_runs import finished_rows
 
 
 root = sys.argv[1] if len(sys.argv) > 1 else "results/variants/ablation"
@@ -33,10 +23,9 @@ for suite in sorted({env for env, _, _ in cells if "_" in env}):
 cells.sort(key=lambda c: c[0])
 for env, name, runs in cells:
     rows = []
-    for path in glob.glob(os.path.join(runs, "progress.csv")):
-        with open(path) as f:
-            run = list(csv.DictReader(f))
-        if not run or int(run[-1]["epoch"]) != epochs(os.path.dirname(path)):
+    for path in glob.glob(runs):
+        run = finished_rows(path)
+        if run is None:
             continue  # a run still going (or stopped early) is left out
         rows += [r for r in run if int(r["epoch"]) > 5]
     steps = [r for r in rows if r.get("line_search")]
