@@ -21,7 +21,7 @@ use std::time::Instant;
 
 use apo_core::ValueConfig;
 use apo_core::{
-    ActionKind, Comm, ConfigError, EpisodeStats, Learner, MlpPolicyConfig, PolicyFamily,
+    ActionKind, Batch, Comm, ConfigError, EpisodeStats, Learner, MlpPolicyConfig, PolicyFamily,
     UpdateReport,
 };
 use apo_envs::{RunningMeanStd, VecEnv};
@@ -420,7 +420,7 @@ where
                 }
             });
             self.fit_outlasts = fit_s > next_s;
-            if let Some(what) = non_finite(&update, &self.learner) {
+            if let Some(what) = non_finite(&update, &self.learner, &rollout.batch) {
                 if next.is_some() {
                     self.collector.discard();
                 }
@@ -446,7 +446,7 @@ where
         } else {
             self.learner
                 .update_value(&rollout.batch, &mut rng, &mut update);
-            if let Some(what) = non_finite(&update, &self.learner) {
+            if let Some(what) = non_finite(&update, &self.learner, &rollout.batch) {
                 return Err(TrainError::NonFinite {
                     epoch: self.state.epoch + 1,
                     what,
@@ -579,8 +579,50 @@ fn gather_episodes(comm: &Comm, rollout: &mut crate::rollout::Rollout) {
     rollout.succeeded = counts[3] as usize;
 }
 
-/// What is not finite after an update, if anything: a loss, the KL, the entropy, or a parameter.
+/// What is not finite after an update, if anything: a loss, the KL, the entropy, or a
+/// parameter, followed by [`batch_summary`] of the epoch's batch.
 fn non_finite<B: Backend, F: PolicyFamily>(
+    report: &UpdateReport,
+    learner: &Learner<B, F>,
+    batch: &Batch,
+) -> Option<String>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
+    non_finite_value(report, learner).map(|what| format!("{what} ({})", batch_summary(batch)))
+}
+
+/// The largest magnitude of each of the batch's float fields, and the fields holding
+/// non-finite entries (with how many): where a non-finite update came from.
+fn batch_summary(batch: &Batch) -> String {
+    let fields: [(&str, &[f32]); 8] = [
+        ("obs", &batch.obs),
+        ("actions", &batch.actions),
+        ("logp", &batch.logp),
+        ("dist", &batch.dist),
+        ("value", &batch.value),
+        ("delta", &batch.delta),
+        ("adv", &batch.adv),
+        ("ret", &batch.ret),
+    ];
+    let mut parts = vec![format!("the epoch's batch: {} transitions", batch.len)];
+    for (name, values) in fields {
+        let bad = values.iter().filter(|v| !v.is_finite()).count();
+        let max = values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0f32, |m, v| m.max(v.abs()));
+        parts.push(match bad {
+            0 => format!("max |{name}| {max:.4e}"),
+            _ => format!("max |{name}| {max:.4e} and {bad} non-finite"),
+        });
+    }
+    parts.push(format!("adv_scale {:.4e}", batch.adv_scale));
+    parts.join(", ")
+}
+
+/// [`non_finite`]'s check of the report and the parameters.
+fn non_finite_value<B: Backend, F: PolicyFamily>(
     report: &UpdateReport,
     learner: &Learner<B, F>,
 ) -> Option<String>
@@ -656,4 +698,42 @@ fn check_given_envs(config: &TrainConfig, envs: &VecEnv) -> Result<(), TrainErro
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::batch_summary;
+    use apo_core::Batch;
+
+    #[test]
+    fn the_batch_summary_names_the_largest_magnitudes_and_the_non_finite_fields() {
+        let batch = Batch {
+            len: 2,
+            obs: vec![0.5, -3.0, f32::NAN, 1.0],
+            actions: vec![0.25, -0.5],
+            logp: vec![-1.0, -2.0],
+            dist: vec![0.0, 0.0],
+            value: vec![2.0, -4.5],
+            delta: vec![f32::INFINITY, 1.0],
+            adv: vec![1.0, -1.0],
+            ret: vec![3.0, 3.0],
+            adv_scale: 2.0,
+        };
+        let summary = batch_summary(&batch);
+        assert!(
+            summary.starts_with("the epoch's batch: 2 transitions"),
+            "{summary}"
+        );
+        assert!(
+            summary.contains("max |obs| 3.0000e0 and 1 non-finite"),
+            "{summary}"
+        );
+        assert!(summary.contains("max |value| 4.5000e0,"), "{summary}");
+        assert!(
+            summary.contains("max |delta| 1.0000e0 and 1 non-finite"),
+            "{summary}"
+        );
+        assert!(!summary.contains("max |adv| 1.0000e0 and"), "{summary}");
+        assert!(summary.ends_with("adv_scale 2.0000e0"), "{summary}");
+    }
 }

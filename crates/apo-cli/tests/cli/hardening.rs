@@ -379,6 +379,11 @@ fn a_diverging_update_stops_the_run_with_an_error_and_keeps_the_last_good_checkp
             && err.contains("nothing was saved"),
         "{err}"
     );
+    // the error describes the epoch's batch, where a non-finite update would come from
+    assert!(
+        err.contains("the epoch's batch: 400 transitions, max |obs| ") && err.contains("adv_scale"),
+        "{err}"
+    );
     assert!(!String::from_utf8_lossy(&out.stdout).contains("run finished"));
     assert!(!run.exists());
 

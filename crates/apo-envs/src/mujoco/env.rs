@@ -131,7 +131,7 @@ pub trait Task: Sized + Send + 'static {
 ///
 /// A step sets the controls to the action, runs `frame_skip` simulator steps, and then checks
 /// stability: when MuJoCo raised a bad-number or buffer-overflow warning during the step, or
-/// `qpos`/`qvel` are not finite, the step returns `terminated = true`,
+/// `qpos`/`qvel`, the reward or the observation are not finite, the step returns `terminated = true`,
 /// `info.unstable = true` and reward 0, and non-finite observation entries are written as 0.
 /// The episode must then be reset. Time limits are not applied here (see the TimeLimit wrapper).
 pub struct MujocoEnv<T: Task> {
@@ -328,11 +328,19 @@ impl<T: Task> Env for MujocoEnv<T> {
 
 /// The transition of a simulated step whose reward and termination are `outcome`, `None` when
 /// the simulator became unstable during the step. An unstable step, or one with a non-finite
-/// reward, ends the episode with `info.unstable`, reward 0, and the non-finite entries of the
-/// observation `obs` (already written) set to 0.
+/// reward or a non-finite entry in the observation `obs` (already written), ends the episode
+/// with `info.unstable`, reward 0, and the non-finite entries of `obs` set to 0.
+///
+/// The observation is checked as well as the state because a finite `qpos`/`qvel` does not
+/// make finite sensors: MuJoCo checks the accelerations inside `mj_step` only, so an
+/// `mj_forward` after the step can still compute a non-finite `qacc` and, from it, a
+/// non-finite accelerometer (seen on GUARD's Goal_Hopper: the policy then acted on NaN and
+/// the update failed, docs/results/guard-campaign.md).
 pub(crate) fn transition(outcome: Option<(f64, bool)>, obs: &mut [f32]) -> Transition {
     let (reward, terminated, unstable) = match outcome {
-        Some((reward, terminated)) if reward.is_finite() => (reward, terminated, false),
+        Some((reward, terminated)) if reward.is_finite() && obs.iter().all(|x| x.is_finite()) => {
+            (reward, terminated, false)
+        }
         _ => (0.0, true, true),
     };
     if unstable {
@@ -373,4 +381,45 @@ pub(crate) fn shared_model(
     let model = Arc::new(Model::from_xml_str_with(mjcf, physics)?);
     models.push(((name, physics), Arc::clone(&model)));
     Ok(model)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::transition;
+
+    #[test]
+    fn a_stable_step_keeps_its_reward_termination_and_observation() {
+        let mut obs = [0.5, -2.0];
+        let t = transition(Some((1.25, true)), &mut obs);
+        assert_eq!(
+            (t.reward, t.terminated, t.info.unstable),
+            (1.25, true, false)
+        );
+        assert_eq!(obs, [0.5, -2.0]);
+    }
+
+    #[test]
+    fn a_non_finite_observation_ends_the_step_as_unstable() {
+        // the simulator raised no warning and the reward is finite, but a sensor is not
+        let mut obs = [f32::NAN, 0.5, f32::INFINITY, -1.0];
+        let t = transition(Some((0.75, false)), &mut obs);
+        assert!(t.terminated && t.info.unstable && !t.truncated, "{t:?}");
+        assert_eq!(t.reward, 0.0);
+        assert_eq!(obs, [0.0, 0.5, 0.0, -1.0]);
+    }
+
+    #[test]
+    fn a_non_finite_reward_or_a_flagged_step_is_unstable() {
+        for outcome in [
+            Some((f64::NAN, false)),
+            Some((f64::NEG_INFINITY, false)),
+            None,
+        ] {
+            let mut obs = [1.0, f32::NAN];
+            let t = transition(outcome, &mut obs);
+            assert!(t.terminated && t.info.unstable, "{outcome:?}: {t:?}");
+            assert_eq!(t.reward, 0.0);
+            assert_eq!(obs, [1.0, 0.0]);
+        }
+    }
 }

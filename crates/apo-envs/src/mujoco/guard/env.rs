@@ -184,7 +184,9 @@ struct Ids {
 ///   values are rotor thrusts), then 10 simulator steps (robbers move before each), then the
 ///   reward, the goal check and the observation.
 /// - Episodes never end by themselves, except when no new goal can be placed after a success
-///   (practically never) or the simulator becomes unstable; the registry adds the 1000-step limit.
+///   (practically never) or the simulator becomes unstable (a MuJoCo warning, or a non-finite
+///   state, reward or observation: `info.unstable`, reward 0); the registry adds the
+///   1000-step limit.
 pub struct GuardEnv {
     suite: Suite,
     data: Data,

@@ -189,7 +189,8 @@ struct Ids {
 ///   rotation and shift it by a little noise, let it settle for 10 zero actions, and start
 ///   again while it fell off the palm; then the goal is drawn around where it settled.
 /// - Episodes never end by themselves, except when the simulator becomes unstable (a MuJoCo
-///   bad-number or overflow warning, or a non-finite state): `terminated`, `info.unstable`,
+///   bad-number or overflow warning, or a non-finite state, reward or observation):
+///   `terminated`, `info.unstable`,
 ///   reward 0. The registry adds the time limit.
 pub struct HandEnv {
     task: HandTask,
