@@ -709,6 +709,25 @@ pub fn file_algorithm(path: &Path) -> Result<Option<Algorithm>, ConfigFileError>
     }
 }
 
+/// The environment of the config file `path` when it names one (its top-level `env` key, as
+/// in a run's `config.toml`).
+///
+/// # Errors
+/// When the file cannot be read or parsed, or its `env` is not a string.
+pub fn file_env(path: &Path) -> Result<Option<String>, ConfigFileError> {
+    match read_table(path)?.remove("env") {
+        None => Ok(None),
+        Some(toml::Value::String(env)) => Ok(Some(env)),
+        Some(other) => Err(ConfigFileError::Type {
+            key: "env".to_string(),
+            message: format!(
+                "expected a string (an environment name) in {}, found {other}",
+                path.display()
+            ),
+        }),
+    }
+}
+
 /// Whether `table` holds the sections of more than one algorithm.
 fn has_several_sections(table: &toml::Table) -> bool {
     match table.get("algo") {

@@ -484,6 +484,46 @@ fn bad_input_gets_clear_errors() {
         before
     );
 
+    // a run's config.toml alone reruns it: its env and algorithm come from the file
+    let again = tmp.path().join("again");
+    ok(&[
+        "train",
+        "--config",
+        path(&out.join("config.toml")),
+        "--quiet",
+        "--out",
+        path(&again),
+    ]);
+    let read = |run: &std::path::Path, name: &str| {
+        std::fs::read_to_string(run.join(name)).expect("run file")
+    };
+    assert_eq!(read(&again, "config.toml"), read(&out, "config.toml"));
+    // the same seed, the same rollout: the first columns (epoch to ep_ret_max) agree
+    let head = |text: String| -> Vec<String> {
+        text.lines()
+            .map(|l| l.split(',').take(6).collect::<Vec<_>>().join(","))
+            .collect()
+    };
+    assert_eq!(
+        head(read(&again, "progress.csv")),
+        head(read(&out, "progress.csv"))
+    );
+    let bad_env = tmp.path().join("bad-env.toml");
+    std::fs::write(&bad_env, "env = 3\n").expect("write");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "a2c",
+        "--config",
+        path(&bad_env),
+        "--out",
+        o,
+    ]);
+    assert!(
+        err.contains("config key `env`") && err.contains("bad-env.toml"),
+        "{err}"
+    );
+
     // a corrupt checkpoint
     std::fs::write(
         out.join("checkpoints/latest/policy.mpk"),

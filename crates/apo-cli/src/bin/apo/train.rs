@@ -21,7 +21,7 @@ pub struct TrainArgs {
     /// Algorithm [default with --config: the file's section [algo.<name>]].
     #[arg(long, value_parser = crate::parse_algo)]
     algo: Option<Algorithm>,
-    /// Environment name (see `apo list`).
+    /// Environment name (see `apo list`) [default with --config: the file's env].
     #[arg(long)]
     env: Option<String>,
     /// Backend of the updates [config: backend; default cpu].
@@ -233,10 +233,13 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
                     crate::algorithm_names()
                 )
             })?;
-            let env = args
-                .env
-                .clone()
-                .context("--env is required (see `apo list`)")?;
+            let file_env = match (&args.env, &args.config) {
+                (None, Some(path)) => apo_cli::config::file_env(path)?,
+                _ => None,
+            };
+            let env = args.env.clone().or(file_env).context(
+                "--env is required (see `apo list`), or a --config file with an env key",
+            )?;
             let spec = apo_envs::registry::spec(&env)?;
             let flags = args.flags(&env);
             warn_overridden(&flags, &args.sets, args.config.as_deref());
