@@ -203,7 +203,7 @@ pub fn train<B: Backend>(
                 bail!(
                     "epoch {epoch}: the update produced {what}; the run stopped without saving that epoch. {kept} Lower \
                      the learning rates (algo.policy_update.lr, algo.value_update.lr) or algo.trust_region.max_kl, or \
-                     check the environment's rewards"
+                     check the environment's observations and rewards"
                 );
             }
             Err(e) => return Err(e.into()),

@@ -580,7 +580,9 @@ fn gather_episodes(comm: &Comm, rollout: &mut crate::rollout::Rollout) {
 }
 
 /// What is not finite after an update, if anything: a loss, the KL, the entropy, or a
-/// parameter, followed by [`batch_summary`] of the epoch's batch.
+/// parameter, followed by [`batch_summary`] of the epoch's batch and, when the batch's
+/// observations or rewards-to-go hold non-finite values, that the rollout brought them (the
+/// networks were finite after the last update, so the environment produced them).
 fn non_finite<B: Backend, F: PolicyFamily>(
     report: &UpdateReport,
     learner: &Learner<B, F>,
@@ -589,7 +591,19 @@ fn non_finite<B: Backend, F: PolicyFamily>(
 where
     F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
 {
-    non_finite_value(report, learner).map(|what| format!("{what} ({})", batch_summary(batch)))
+    let from_env = [&batch.obs, &batch.ret]
+        .iter()
+        .any(|field| field.iter().any(|x| !x.is_finite()));
+    non_finite_value(report, learner).map(|what| {
+        let summary = batch_summary(batch);
+        if from_env {
+            format!(
+                "{what} ({summary}); the environment returned non-finite observations or rewards, which the update only met"
+            )
+        } else {
+            format!("{what} ({summary})")
+        }
+    })
 }
 
 /// The largest magnitude of each of the batch's float fields, and the fields holding

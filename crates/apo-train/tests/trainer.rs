@@ -798,3 +798,73 @@ mod nn_policies {
         check_all::<Wgpu>(6, &Default::default());
     }
 }
+
+/// Pendulum whose observation turns NaN at step `at` without the step being flagged unstable,
+/// as a custom environment (or a sensor) can.
+struct NanAt {
+    inner: Box<dyn apo_envs::Env>,
+    at: usize,
+    steps: usize,
+}
+
+impl apo_envs::Env for NanAt {
+    fn observation_space(&self) -> &apo_envs::Space {
+        self.inner.observation_space()
+    }
+    fn action_space(&self) -> &apo_envs::Space {
+        self.inner.action_space()
+    }
+    fn reset(&mut self, seed: Option<u64>, obs: &mut [f32]) {
+        self.inner.reset(seed, obs);
+    }
+    fn step(&mut self, action: apo_envs::Action<'_>, obs: &mut [f32]) -> apo_envs::Transition {
+        let transition = self.inner.step(action, obs);
+        self.steps += 1;
+        if self.steps == self.at {
+            obs[0] = f32::NAN;
+        }
+        transition
+    }
+}
+
+/// A non-finite observation from the environment stops the run with an error that says so and
+/// describes the batch (the update only met the NaN), before the epoch counts.
+#[test]
+fn a_non_finite_observation_from_the_environment_is_named_in_the_error() {
+    let mut config = small(Algorithm::Trpo, "Pendulum-v1", 2, 64);
+    config.actions = apo_train::ActionMapping::Raw;
+    let envs = (0..2)
+        .map(|i| {
+            let inner =
+                apo_envs::registry::make_with("Pendulum-v1", &unwrapped()).expect("Pendulum");
+            let at = if i == 0 { 10 } else { usize::MAX };
+            Box::new(NanAt {
+                inner,
+                at,
+                steps: 0,
+            }) as Box<dyn apo_envs::Env>
+        })
+        .collect();
+    let envs = apo_envs::VecEnv::new(envs).expect("envs");
+    let mut trainer =
+        Trainer::<NdArray, _>::from_envs(config, envs, &Default::default(), |c, o, a| {
+            c.mlp_policy(o, a)
+        })
+        .expect("trainer");
+    let error = trainer
+        .epoch(&AtomicBool::new(false), &mut |_| {})
+        .map(|report| report.is_some())
+        .expect_err("a NaN observation cannot train");
+    let TrainError::NonFinite { epoch, ref what } = error else {
+        panic!("expected NonFinite, got {error}");
+    };
+    assert_eq!(epoch, 1);
+    assert!(
+        what.contains("the epoch's batch: 64 transitions")
+            && what.contains("max |obs| ")
+            && what.contains(" non-finite")
+            && what.contains("the environment returned non-finite observations or rewards"),
+        "{what}"
+    );
+    assert_eq!(trainer.state().epoch, 0, "the failed epoch does not count");
+}
