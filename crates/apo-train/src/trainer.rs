@@ -591,10 +591,11 @@ fn non_finite<B: Backend, F: PolicyFamily>(
 where
     F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
 {
-    let from_env = [&batch.obs, &batch.ret]
-        .iter()
-        .any(|field| field.iter().any(|x| !x.is_finite()));
     non_finite_value(report, learner).map(|what| {
+        // read only on the error path: the batch is not scanned after a good update
+        let from_env = [&batch.obs, &batch.ret]
+            .iter()
+            .any(|field| field.iter().any(|x| !x.is_finite()));
         let summary = batch_summary(batch);
         if from_env {
             format!(
