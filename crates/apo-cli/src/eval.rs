@@ -22,8 +22,11 @@ pub struct EvalResult {
     /// Length of each episode.
     pub lengths: Vec<usize>,
     /// Whether each episode ended in success, for tasks that judge it (the hand tasks; the
-    /// last step's `info.success`), else `None`.
+    /// last step's `info.success`; an unstable episode is a failure), else `None`.
     pub success: Vec<Option<bool>>,
+    /// Whether each episode was ended by a simulator instability (its return, up to that
+    /// step, counts like any other).
+    pub unstable: Vec<bool>,
 }
 
 impl EvalResult {
@@ -182,10 +185,11 @@ pub fn play_episodes(
         returns: vec![],
         lengths: vec![],
         success: vec![],
+        unstable: vec![],
     };
     for episode in 0..count {
         env.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
-        let (mut ret, mut len) = (0.0, 0);
+        let (mut ret, mut len, mut judged) = (0.0, 0, false);
         let mut moment = Moment {
             episode,
             step: 0,
@@ -194,7 +198,7 @@ pub fn play_episodes(
             done: false,
         };
         observe(env, &moment)?;
-        let success = loop {
+        let (success, unstable) = loop {
             if let Some(rms) = normalizer {
                 rms.normalize(&mut obs);
             }
@@ -207,6 +211,7 @@ pub fn play_episodes(
             };
             ret += t.reward;
             len += 1;
+            judged |= t.info.success.is_some();
             moment = Moment {
                 step: len,
                 reward: t.reward,
@@ -216,12 +221,14 @@ pub fn play_episodes(
             };
             observe(env, &moment)?;
             if t.done() {
-                break t.info.success;
+                let success = judged.then_some(t.info.success == Some(true) && !t.info.unstable);
+                break (success, t.info.unstable);
             }
         };
         result.returns.push(ret);
         result.lengths.push(len);
         result.success.push(success);
+        result.unstable.push(unstable);
     }
     Ok(result)
 }

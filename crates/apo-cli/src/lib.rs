@@ -5,6 +5,7 @@ pub mod atomic;
 pub mod bench;
 pub mod checkpoint;
 pub mod config;
+pub mod episodes;
 pub mod eval;
 pub mod input;
 #[cfg(feature = "mpi")]

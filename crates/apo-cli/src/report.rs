@@ -246,7 +246,8 @@ fn last_average(
 /// environment's scores out.
 ///
 /// # Errors
-/// A run whose `config.toml` or `progress.csv` cannot be read.
+/// A run whose `config.toml` or `progress.csv` cannot be read. A run that has an
+/// `episodes.csv` has its return statistics recomputed from it (every episode counted).
 pub fn report(
     runs: &[PathBuf],
     last: usize,
@@ -258,7 +259,10 @@ pub fn report(
     for dir in runs {
         let config = RunConfig::load(&dir.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", dir.display()))?;
-        targets.insert(dir.clone(), config.train.epochs);
+        targets.insert(
+            dir.clone(),
+            (config.train.epochs, config.train.algo.probability_factor()),
+        );
         options
             .entry(config.train.env.clone())
             .or_insert(apo_envs::MakeOptions {
@@ -282,9 +286,13 @@ pub fn report(
         let mut incomplete = 0;
         let mut summaries = Vec::new();
         for dir in &dirs {
-            let rows = progress::read_rows(&dir.join(run_dir::PROGRESS))
+            let (target, k) = targets.get(dir).copied().unwrap_or((0, 0.0));
+            let mut rows = progress::read_rows(&dir.join(run_dir::PROGRESS))
                 .with_context(|| format!("run {}", dir.display()))?;
-            if rows.last().map_or(0, |r| r.epoch) < targets.get(dir).copied().unwrap_or(0) {
+            // the episodes, where the run recorded them, are what its statistics are made of
+            crate::episodes::recompute_rows(&mut rows, dir, k)
+                .with_context(|| format!("run {}", dir.display()))?;
+            if rows.last().map_or(0, |r| r.epoch) < target {
                 incomplete += 1;
             }
             let s = summarize_rows(&rows, last);

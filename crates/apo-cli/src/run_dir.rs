@@ -35,6 +35,8 @@ pub fn env_label(env: &str) -> String {
 pub const CONFIG: &str = "config.toml";
 /// One row per epoch.
 pub const PROGRESS: &str = "progress.csv";
+/// The run's per-episode record.
+pub const EPISODES: &str = "episodes.csv";
 /// The training log.
 pub const LOG: &str = "train.log";
 /// The lock file held while a training runs.
@@ -53,7 +55,7 @@ const MARKER_HEADER: &str =
 
 /// The names apo gives its files in a run directory (a file of one of these names that apo
 /// did not create blocks `--force`: the new run would overwrite it).
-const FIXED: [&str; 4] = [CONFIG, PROGRESS, LOG, CHECKPOINTS];
+const FIXED: [&str; 5] = [CONFIG, PROGRESS, EPISODES, LOG, CHECKPOINTS];
 
 /// The entries listed in `dir`'s marker; `None` when `dir` has no marker.
 ///

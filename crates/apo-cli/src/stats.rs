@@ -44,6 +44,15 @@ impl Scores {
         }
     }
 
+    /// The scores without task `t`.
+    fn without_task(&self, t: usize) -> Scores {
+        let mut tasks = self.tasks.clone();
+        if t < tasks.len() {
+            tasks.remove(t);
+        }
+        Scores { tasks }
+    }
+
     /// Every run's score of every task, in task order.
     fn all(&self) -> impl Iterator<Item = f64> + '_ {
         self.tasks.iter().flatten().copied()
@@ -191,6 +200,23 @@ pub struct Estimate {
     pub lower: f64,
     /// Upper end of the interval.
     pub upper: f64,
+    /// The smallest and largest point estimate over the comparisons that leave one task out
+    /// (how much the figure rests on a single task); `None` with fewer than two tasks, and for
+    /// the profiles.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub leave_one_task_out: Option<[f64; 2]>,
+}
+
+/// The range of `statistic` over the scores that leave out one task at a time (`None` with
+/// fewer than two tasks).
+fn leave_one_task_out(tasks: usize, statistic: impl Fn(usize) -> f64) -> Option<[f64; 2]> {
+    (tasks >= 2).then(|| {
+        (0..tasks)
+            .map(statistic)
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], v| {
+                [lo.min(v), hi.max(v)]
+            })
+    })
 }
 
 /// The stratified bootstrap's settings.
@@ -225,6 +251,9 @@ impl StratifiedBootstrap {
             point: statistic(scores),
             lower,
             upper,
+            leave_one_task_out: leave_one_task_out(scores.tasks.len(), |t| {
+                statistic(&scores.without_task(t))
+            }),
         }
     }
 
@@ -240,6 +269,9 @@ impl StratifiedBootstrap {
             point: probability_of_improvement(x, y),
             lower,
             upper,
+            leave_one_task_out: leave_one_task_out(x.tasks.len().min(y.tasks.len()), |t| {
+                probability_of_improvement(&x.without_task(t), &y.without_task(t))
+            }),
         }
     }
 
@@ -258,6 +290,7 @@ impl StratifiedBootstrap {
                     point,
                     lower,
                     upper,
+                    leave_one_task_out: None,
                 }
             })
             .collect()
@@ -495,9 +528,13 @@ pub fn analyze(comparison: &Comparison, bootstrap: &StratifiedBootstrap, taus: &
     }
 }
 
-/// `point [lower, upper]` with three decimals.
+/// `point [lower, upper]` with three decimals, and the leave-one-task-out range when there is
+/// one: `… (LOTO lo–hi)`.
 fn cell(e: &Estimate) -> String {
-    format!("{:.3} [{:.3}, {:.3}]", e.point, e.lower, e.upper)
+    let loto = e
+        .leave_one_task_out
+        .map_or_else(String::new, |[lo, hi]| format!(" (LOTO {lo:.3}–{hi:.3})"));
+    format!("{:.3} [{:.3}, {:.3}]{loto}", e.point, e.lower, e.upper)
 }
 
 /// The analysis as Markdown: a table of the aggregates (each with its interval) and one of
@@ -506,7 +543,7 @@ fn cell(e: &Estimate) -> String {
 pub fn markdown(analysis: &Analysis) -> String {
     let percent = analysis.confidence * 100.0;
     let mut out = format!(
-        "Over {} task(s) ({}); {percent:.0} % stratified-bootstrap intervals, {} resamples.\n\n",
+        "Over {} task(s) ({}); {percent:.0} % stratified-bootstrap intervals, {} resamples; LOTO: the range of the point estimate over the comparisons that leave one task out.\n\n",
         analysis.tasks.len(),
         analysis.tasks.join(", "),
         analysis.reps
@@ -626,6 +663,38 @@ mod tests {
             probability_of_improvement(&x, &y) + probability_of_improvement(&y, &x),
             1.0
         ));
+    }
+
+    #[test]
+    fn leave_one_task_out_ranges_by_hand() {
+        // per task P(x > y): 1, 0, 1/2 → P = 1/2; leaving out task 0, 1, 2: 1/4, 3/4, 1/2
+        let x = Scores {
+            tasks: vec![vec![2.0], vec![0.0], vec![1.0]],
+        };
+        let y = Scores {
+            tasks: vec![vec![1.0], vec![1.0], vec![1.0]],
+        };
+        let b = StratifiedBootstrap {
+            reps: 10,
+            level: 0.95,
+            seed: 0,
+        };
+        let p = b.improvement(&x, &y);
+        assert!(close(p.point, 0.5));
+        assert_eq!(p.leave_one_task_out, Some([0.25, 0.75]));
+        // the mean of x's task means 1, without each task: 1/2, 3/2, 1
+        let m = b.estimate(&x, |s| Aggregate::Mean.of(s));
+        assert_eq!(m.leave_one_task_out, Some([0.5, 1.5]));
+        // one task: nothing to leave out
+        let one = Scores {
+            tasks: vec![vec![1.0, 2.0]],
+        };
+        assert_eq!(
+            b.estimate(&one, |s| Aggregate::Mean.of(s))
+                .leave_one_task_out,
+            None
+        );
+        assert!(cell(&p).ends_with("(LOTO 0.250–0.750)"), "{}", cell(&p));
     }
 
     #[test]

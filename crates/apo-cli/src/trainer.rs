@@ -1,6 +1,6 @@
 //! Training into a run directory: [`apo_train::Trainer`] epoch after epoch, with the run's
-//! files — `progress.csv`, TensorBoard events and checkpoints — written after each epoch, and
-//! resuming from them.
+//! files — `progress.csv`, `episodes.csv`, TensorBoard events and checkpoints — written after
+//! each epoch, and resuming from them.
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -14,6 +14,7 @@ use burn::tensor::backend::Backend;
 
 use crate::checkpoint::{self, Shapes, TrainState, Which};
 use crate::config::RunConfig;
+use crate::episodes::EpisodeLog;
 use crate::progress::{self, ProgressRow};
 use crate::run_dir::VIDEOS;
 use crate::tensorboard::{row_scalars, EventWriter};
@@ -105,9 +106,15 @@ pub fn train<B: Backend>(
         // what this run will create, recorded before it exists (the run directory's marker)
         crate::run_dir::claim_new(
             run_dir,
-            &[crate::run_dir::PROGRESS, crate::run_dir::CHECKPOINTS],
+            &[
+                crate::run_dir::PROGRESS,
+                crate::run_dir::EPISODES,
+                crate::run_dir::CHECKPOINTS,
+            ],
         )?;
     }
+    let episodes_path = run_dir.join(crate::run_dir::EPISODES);
+    let mut episodes = EpisodeLog::new(&episodes_path);
     let mut rows = Vec::new();
     if resume {
         let on_disk = if writer && progress_path.exists() {
@@ -129,6 +136,7 @@ pub fn train<B: Backend>(
                 }
                 if writer {
                     check_rows(&on_disk, &state, &progress_path, &from)?;
+                    episodes = EpisodeLog::resume(&episodes_path, state.run.epoch)?;
                 }
                 rows = on_disk;
                 if rows.len() > state.run.epoch {
@@ -231,6 +239,7 @@ pub fn train<B: Backend>(
         rows.push(row.clone());
         if let Some(events) = &mut events {
             progress::write(&progress_path, &rows)?;
+            episodes.append(&report.episodes)?;
             events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
         }
         if let Some(value) = row.evaluation(metric) {

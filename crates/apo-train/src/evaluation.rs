@@ -7,8 +7,9 @@
 //! starts (the policies of different epochs are compared on common episodes), and nothing of
 //! the training streams — the rollout's environments and random numbers, the update's — is
 //! touched: a run with evaluation trains exactly as the same run without it. Observations are
-//! normalized with the run's current statistics, which the evaluation does not update. Episodes
-//! ended by a simulator instability are counted and left out, as in training.
+//! normalized with the run's current statistics, which the evaluation does not update. As in
+//! training, every episode counts: one ended by a simulator instability enters the statistics
+//! with the return it had reached, and is counted and flagged.
 
 use apo_core::inference::ActBuffers;
 use apo_core::EpisodeStats;
@@ -19,6 +20,7 @@ use rand::SeedableRng;
 use crate::actor::Act;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
+use crate::rollout::{episode_stats, Episode};
 use crate::seed::derive_seed;
 
 /// The seed stream of the evaluation's episode starts.
@@ -29,10 +31,12 @@ const ACTION_STREAM: u64 = 5;
 /// What one evaluation measured.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Evaluation {
-    /// Statistics of the episodes that ended normally (`None` if every one was unstable).
+    /// Statistics of every episode, unstable ones included (`None` for no episode).
     pub stats: Option<EpisodeStats>,
-    /// Episodes ended by a simulator instability (left out of `stats`).
+    /// Episodes ended by a simulator instability (counted in `stats`).
     pub unstable: usize,
+    /// The episodes: episode `i` is environment 0's, reset with its own seed (`nth` 0).
+    pub episodes: Vec<Episode>,
 }
 
 /// Runs the evaluation episodes of a run.
@@ -60,15 +64,21 @@ impl Evaluator {
             ..config.make_options()
         };
         let env = apo_envs::make_with(&config.env, &options)?;
+        Ok(Some(Self::with_env(env, config)))
+    }
+
+    /// The evaluator of `config` (`eval_episodes`, `eval_deterministic`, `seed`) on `env`, any
+    /// [`Env`], registered or not (`eval_every` is not read).
+    pub fn with_env(env: Box<dyn Env>, config: &TrainConfig) -> Self {
         let obs = vec![0.0; env.observation_space().flat_dim()];
-        Ok(Some(Self {
+        Self {
             env,
             episodes: config.eval_episodes,
             deterministic: config.eval_deterministic,
             seed: config.seed,
             obs,
             act: ActBuffers::default(),
-        }))
+        }
     }
 
     /// Plays the evaluation episodes with `actor`, normalizing observations with `normalizer`
@@ -81,12 +91,12 @@ impl Evaluator {
     ) -> Evaluation {
         let first = derive_seed(self.seed, 0, RESET_STREAM);
         let mut rng = StdRng::seed_from_u64(derive_seed(self.seed, 0, ACTION_STREAM));
-        let (mut returns, mut lengths, mut unstable) = (Vec::new(), Vec::new(), 0);
+        let mut episodes = Vec::with_capacity(self.episodes);
         let space = self.env.action_space().clone();
         for episode in 0..self.episodes {
-            self.env
-                .reset(Some(first.wrapping_add(episode as u64)), &mut self.obs);
-            let (mut ret, mut len) = (0.0, 0);
+            let seed = first.wrapping_add(episode as u64);
+            self.env.reset(Some(seed), &mut self.obs);
+            let (mut ret, mut len, mut judged) = (0.0, 0, false);
             loop {
                 if let Some(rms) = normalizer {
                     rms.normalize(&mut self.obs);
@@ -103,20 +113,25 @@ impl Evaluator {
                 };
                 ret += t.reward;
                 len += 1;
+                judged |= t.info.success.is_some();
                 if t.done() {
-                    if t.info.unstable {
-                        unstable += 1;
-                    } else {
-                        returns.push(ret);
-                        lengths.push(len);
-                    }
+                    episodes.push(Episode {
+                        env: 0,
+                        seed,
+                        nth: 0,
+                        ret,
+                        length: len,
+                        unstable: t.info.unstable,
+                        success: judged.then_some(t.info.success == Some(true) && !t.info.unstable),
+                    });
                     break;
                 }
             }
         }
         Evaluation {
-            stats: EpisodeStats::from_episodes(&returns, &lengths, k),
-            unstable,
+            stats: episode_stats(&episodes, k),
+            unstable: episodes.iter().filter(|e| e.unstable).count(),
+            episodes,
         }
     }
 }

@@ -1,7 +1,82 @@
-//! The metrics of an epoch: one [`ProgressRow`] (the CLI writes them to `progress.csv`).
+//! The metrics of an epoch: one [`ProgressRow`] (the CLI writes them to `progress.csv`) and
+//! one [`EpisodeRecord`] per episode that ended (`episodes.csv`).
+//!
+//! Every episode counts: the return statistics of a row (mean, worst, best, spread, CVaR,
+//! quantile, length, the bound and its confidence), of training and of evaluation alike, are
+//! over every episode that ended, an episode ended by a simulator instability included with
+//! the return it had reached when it ended; such an episode is also counted
+//! (`unstable_episodes`, `eval_unstable_episodes`) and flagged in its record.
 
 use apo_core::{EpisodeStats, LineSearchOutcome, UpdateReport};
 use serde::{Deserialize, Serialize};
+
+use crate::rollout::Episode;
+
+/// Which episodes an [`EpisodeRecord`] belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    /// The epoch's rollout (the episodes the policy learned from).
+    Train,
+    /// The evaluation after the epoch's update (`eval_every`).
+    Eval,
+}
+
+/// One episode that ended: a row of `episodes.csv`, as Stable-Baselines3's `Monitor` keeps one,
+/// from which every return statistic of a run can be recomputed without running it again.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeRecord {
+    /// The epoch it was played in (from 1; an evaluation's episodes carry the epoch after
+    /// whose update they were played).
+    pub epoch: usize,
+    /// Training rollout or evaluation.
+    pub phase: Phase,
+    /// The environment of the vector that played it (0 for evaluation episodes).
+    pub env: usize,
+    /// The seed of the reset that started the environment's stream of episodes…
+    pub seed: u64,
+    /// …and which episode of that stream it is (0: the first after the seeded reset).
+    pub nth: usize,
+    /// Its undiscounted return, up to the step that ended it.
+    #[serde(rename = "return")]
+    pub ret: f64,
+    /// Its length in steps.
+    pub length: usize,
+    /// Ended by a simulator instability (counted in every statistic all the same).
+    pub unstable: bool,
+    /// Ended in success, for tasks that judge it (empty for the others).
+    pub success: Option<bool>,
+}
+
+impl EpisodeRecord {
+    /// The record of `episode`, played in `epoch` during `phase`.
+    pub fn new(epoch: usize, phase: Phase, episode: &Episode) -> Self {
+        Self {
+            epoch,
+            phase,
+            env: episode.env,
+            seed: episode.seed,
+            nth: episode.nth,
+            ret: episode.ret,
+            length: episode.length,
+            unstable: episode.unstable,
+            success: episode.success,
+        }
+    }
+
+    /// The episode the record holds.
+    pub fn episode(&self) -> Episode {
+        Episode {
+            env: self.env,
+            seed: self.seed,
+            nth: self.nth,
+            ret: self.ret,
+            length: self.length,
+            unstable: self.unstable,
+            success: self.success,
+        }
+    }
+}
 
 /// The columns that depend on wall-clock time (everything else is reproducible).
 pub const TIME_COLUMNS: [&str; 6] = [
@@ -20,9 +95,10 @@ pub struct ProgressRow {
     pub epoch: usize,
     /// Environment steps so far.
     pub env_steps: u64,
-    /// Episodes completed in this epoch (unstable ones excluded).
+    /// Episodes that ended in this epoch, those ended by a simulator instability included
+    /// (also counted in `unstable_episodes`).
     pub episodes: usize,
-    /// Mean return of the epoch's episodes.
+    /// Mean return of the epoch's episodes (every one, see the module's documentation).
     pub ep_ret_mean: Option<f64>,
     /// Worst return.
     pub ep_ret_min: Option<f64>,
@@ -86,7 +162,8 @@ pub struct ProgressRow {
     /// V-MPO's Lagrange multiplier α after the update.
     #[serde(default)]
     pub alpha: Option<f64>,
-    /// Episodes ended by a simulator instability in this epoch.
+    /// Episodes ended by a simulator instability in this epoch (counted in `episodes` and in
+    /// every return statistic, with the return they had reached).
     pub unstable_episodes: usize,
     /// Mean return of the evaluation episodes after this epoch's update (epochs that
     /// evaluate, see `eval_every`).
@@ -104,7 +181,7 @@ pub struct ProgressRow {
     /// Their mean length.
     #[serde(default)]
     pub eval_len_mean: Option<f64>,
-    /// Evaluation episodes ended by a simulator instability (left out of the statistics).
+    /// Evaluation episodes ended by a simulator instability (counted in the statistics).
     #[serde(default)]
     pub eval_unstable_episodes: Option<usize>,
     /// Environment steps per second over the epoch (rollout and update).
@@ -204,20 +281,9 @@ impl ProgressRow {
             LineSearchOutcome::Rejected => "rejected".to_string(),
             LineSearchOutcome::NoStep => "no_step".to_string(),
         });
-        Self {
+        let mut row = Self {
             epoch,
             env_steps,
-            episodes: stats.map_or(0, |s| s.count),
-            ep_ret_mean: stats.map(|s| s.ret_mean),
-            ep_ret_min: stats.map(|s| s.ret_min),
-            ep_ret_max: stats.map(|s| s.ret_max),
-            ep_ret_std: stats.map(|s| s.ret_std),
-            ep_ret_cvar10: stats.map(|s| s.ret_cvar10),
-            ep_ret_q10: stats.map(|s| s.ret_q10),
-            ep_len_mean: stats.map(|s| s.len_mean),
-            success_rate,
-            bound: stats.map(|s| s.bound),
-            confidence: stats.map(|s| s.confidence),
             kl: report.kl,
             entropy: report.entropy,
             loss_pi: report.loss_pi,
@@ -234,19 +300,36 @@ impl ProgressRow {
             ratio_deviation: report.proximal.and_then(|p| p.ratio_deviation),
             eta: report.multipliers.map(|m| m.eta),
             alpha: report.multipliers.map(|m| m.alpha),
-            unstable_episodes,
-            eval_ret_mean: None,
-            eval_ret_min: None,
-            eval_ret_cvar10: None,
-            eval_ret_std: None,
-            eval_len_mean: None,
-            eval_unstable_episodes: None,
-            eval_s: 0.0,
             steps_per_s: times.steps_per_s,
             time_s: times.time_s,
             rollout_s: times.rollout_s,
             update_pi_s: report.policy_update_s,
             update_v_s: report.value_update_s,
-        }
+            ..Self::default()
+        };
+        row.set_training(stats, success_rate, unstable_episodes);
+        row
+    }
+
+    /// Sets the training return columns from the epoch's episode statistics (every episode
+    /// counted), their success rate and the number of unstable ones.
+    pub fn set_training(
+        &mut self,
+        stats: Option<&EpisodeStats>,
+        success_rate: Option<f64>,
+        unstable: usize,
+    ) {
+        self.episodes = stats.map_or(0, |s| s.count);
+        self.ep_ret_mean = stats.map(|s| s.ret_mean);
+        self.ep_ret_min = stats.map(|s| s.ret_min);
+        self.ep_ret_max = stats.map(|s| s.ret_max);
+        self.ep_ret_std = stats.map(|s| s.ret_std);
+        self.ep_ret_cvar10 = stats.map(|s| s.ret_cvar10);
+        self.ep_ret_q10 = stats.map(|s| s.ret_q10);
+        self.ep_len_mean = stats.map(|s| s.len_mean);
+        self.success_rate = success_rate;
+        self.bound = stats.map(|s| s.bound);
+        self.confidence = stats.map(|s| s.confidence);
+        self.unstable_episodes = unstable;
     }
 }

@@ -12,14 +12,20 @@
 //! A path ending by termination bootstraps from 0; one truncated by the time limit from
 //! `V(final observation)` (or from 0, with [`Collector::bootstrap_time_limit`]`(false)`); one
 //! cut by the end of the epoch from `V(current observation)`.
-//! An episode ended by a simulator instability is treated as terminated (value 0), counted in
-//! [`Rollout::unstable`], and left out of the return statistics.
+//! An episode ended by a simulator instability is treated as terminated (value 0).
+//!
+//! # Every episode counts
+//!
+//! Every episode that ends in the epoch is one [`Episode`] of [`Rollout::episodes`], with the
+//! return it had reached when it ended: an episode ended by a simulator instability is kept
+//! with [`Episode::unstable`] set (and counted by [`Rollout::unstable`]), so a policy that drives
+//! the simulator into failure cannot raise its worst return by failing.
 //!
 //! # Success
 //!
 //! For tasks that judge success (the hand tasks), an episode counts as a success when its last
-//! step reports one, as Gymnasium-Robotics' success rate is measured: [`Rollout::succeeded`] of
-//! [`Rollout::judged`].
+//! step reports one, as Gymnasium-Robotics' success rate is measured; an unstable episode of
+//! such a task counts as a failure ([`Rollout::success_rate`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -40,29 +46,66 @@ pub fn action_kind(space: &Space) -> ActionKind {
     }
 }
 
+/// One episode that ended: where it was played and how it went.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Episode {
+    /// The environment of the vector that played it (with several MPI ranks, rank `r`'s
+    /// environment `i` is `r · num_envs + i`).
+    pub env: usize,
+    /// The seed of the reset that started the environment's stream of episodes…
+    pub seed: u64,
+    /// …and which episode of that stream it is (0: the one right after the seeded reset; the
+    /// later ones follow automatic resets, which continue the environment's random stream).
+    pub nth: usize,
+    /// Its undiscounted return, up to the step that ended it.
+    pub ret: f64,
+    /// Its length in steps.
+    pub length: usize,
+    /// Ended by a simulator instability (still counted in every return statistic).
+    pub unstable: bool,
+    /// For tasks that judge success: whether it ended in success (an unstable episode of such a
+    /// task is a failure); `None` for tasks that do not judge success.
+    pub success: Option<bool>,
+}
+
+/// The statistics of `episodes` (every one counted, unstable ones included) with probability
+/// factor `k`; `None` when there is none.
+pub fn episode_stats(episodes: &[Episode], k: f64) -> Option<apo_core::EpisodeStats> {
+    let returns: Vec<f64> = episodes.iter().map(|e| e.ret).collect();
+    let lengths: Vec<usize> = episodes.iter().map(|e| e.length).collect();
+    apo_core::EpisodeStats::from_episodes(&returns, &lengths, k)
+}
+
+/// The fraction of the judged `episodes` that ended in success; `None` when none was judged.
+pub fn success_rate(episodes: &[Episode]) -> Option<f64> {
+    let (judged, succeeded) = episodes
+        .iter()
+        .filter_map(|e| e.success)
+        .fold((0usize, 0usize), |(j, s), ok| (j + 1, s + usize::from(ok)));
+    (judged > 0).then(|| succeeded as f64 / judged as f64)
+}
+
 /// What one epoch's rollout produced.
 pub struct Rollout {
     /// The transitions.
     pub batch: apo_core::Batch,
-    /// Returns of the episodes that ended.
-    pub returns: Vec<f64>,
-    /// Their lengths.
-    pub lengths: Vec<usize>,
-    /// Episodes ended by a simulator instability.
-    pub unstable: usize,
-    /// Of the episodes that ended (stable ones), those whose task judges success
-    /// ([`apo_envs::StepInfo::success`] on their last step)…
-    pub judged: usize,
-    /// …and those of them that ended in success.
-    pub succeeded: usize,
+    /// Every episode that ended in the epoch, unstable ones included, in the order they ended
+    /// (by vector step, then environment).
+    pub episodes: Vec<Episode>,
     /// Environment steps taken.
     pub steps: u64,
 }
 
 impl Rollout {
-    /// `succeeded / judged`; `None` when no episode that ended was judged.
+    /// Episodes ended by a simulator instability.
+    pub fn unstable(&self) -> usize {
+        self.episodes.iter().filter(|e| e.unstable).count()
+    }
+
+    /// The fraction of the judged episodes that ended in success; `None` when no episode that
+    /// ended was judged.
     pub fn success_rate(&self) -> Option<f64> {
-        (self.judged > 0).then(|| self.succeeded as f64 / self.judged as f64)
+        success_rate(&self.episodes)
     }
 }
 
@@ -87,6 +130,9 @@ pub struct Collector {
     /// With several ranks and a normalizer, during a rollout: the statistics at its start and
     /// this rank's additions, merged over the ranks by [`Collector::finish`].
     merge: Option<(RunningMeanStd, RunningMeanStd)>,
+    /// Per environment: whether its task has judged success on some step (an unstable step
+    /// does not say, so an unstable episode of such a task is counted as a failure).
+    judges_success: Vec<bool>,
 }
 
 impl Collector {
@@ -127,6 +173,7 @@ impl Collector {
             envs,
             comm: Comm::default(),
             merge: None,
+            judges_success: vec![false; n],
         }
     }
 
@@ -144,6 +191,11 @@ impl Collector {
     pub fn bootstrap_time_limit(mut self, bootstrap: bool) -> Self {
         self.bootstrap_time_limit = bootstrap;
         self
+    }
+
+    /// The number of environments stepped together.
+    pub fn num_envs(&self) -> usize {
+        self.envs.num_envs()
     }
 
     /// The observation dimension.
@@ -201,16 +253,12 @@ impl Collector {
         let n = self.envs.num_envs();
         let obs_dim = self.envs.obs_dim();
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 1));
-        self.envs
-            .reset(Some(derive_seed(seed, 0, 0)), &mut self.obs);
-        let (mut ep_ret, mut ep_len) = (vec![0.0f64; n], vec![0usize; n]);
+        let reset_seed = derive_seed(seed, 0, 0);
+        self.envs.reset(Some(reset_seed), &mut self.obs);
+        let (mut ep_ret, mut ep_len, mut nth) = (vec![0.0f64; n], vec![0usize; n], vec![0; n]);
         let mut rollout = Rollout {
             batch: Default::default(),
-            returns: vec![],
-            lengths: vec![],
-            unstable: 0,
-            judged: 0,
-            succeeded: 0,
+            episodes: vec![],
             steps: 0,
         };
         let mut row = vec![0.0f32; obs_dim];
@@ -257,6 +305,9 @@ impl Collector {
                 );
                 ep_ret[i] += step.reward;
                 ep_len[i] += 1;
+                if step.info.success.is_some() {
+                    self.judges_success[i] = true;
+                }
                 if !step.done() {
                     continue;
                 }
@@ -270,18 +321,21 @@ impl Collector {
                     self.normalized(final_obs, &mut row);
                     self.buffers[i].end_path(Some(&row));
                 }
-                if step.info.unstable {
-                    rollout.unstable += 1;
-                } else {
-                    rollout.returns.push(ep_ret[i]);
-                    rollout.lengths.push(ep_len[i]);
-                    if let Some(success) = step.info.success {
-                        rollout.judged += 1;
-                        rollout.succeeded += usize::from(success);
-                    }
-                }
+                rollout.episodes.push(Episode {
+                    env: i,
+                    seed: reset_seed.wrapping_add(i as u64),
+                    nth: nth[i],
+                    ret: ep_ret[i],
+                    length: ep_len[i],
+                    unstable: step.info.unstable,
+                    success: match step.info.success {
+                        Some(success) => Some(success && !step.info.unstable),
+                        None => (self.judges_success[i] && step.info.unstable).then_some(false),
+                    },
+                });
                 ep_ret[i] = 0.0;
                 ep_len[i] = 0;
+                nth[i] += 1;
             }
             self.obs_norm = obs_norm;
         }

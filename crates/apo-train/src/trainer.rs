@@ -21,8 +21,7 @@ use std::time::Instant;
 
 use apo_core::ValueConfig;
 use apo_core::{
-    ActionKind, Batch, Comm, ConfigError, EpisodeStats, Learner, MlpPolicyConfig, PolicyFamily,
-    UpdateReport,
+    ActionKind, Batch, Comm, ConfigError, Learner, MlpPolicyConfig, PolicyFamily, UpdateReport,
 };
 use apo_envs::{RunningMeanStd, VecEnv};
 use burn::backend::Autodiff;
@@ -36,8 +35,8 @@ use crate::actor::{Actor, BurnActor, HostActor};
 use crate::config::{ActionMapping, EpisodeReset, TrainConfig};
 use crate::error::TrainError;
 use crate::evaluation::Evaluator;
-use crate::metrics::{EpochTimes, ProgressRow};
-use crate::rollout::{action_kind, Collector};
+use crate::metrics::{EpisodeRecord, EpochTimes, Phase, ProgressRow};
+use crate::rollout::{action_kind, episode_stats, Collector, Episode};
 use crate::seed::derive_seed;
 
 /// The counters of a run: what a checkpoint must hold besides the networks.
@@ -67,6 +66,9 @@ pub struct EpochReport {
     pub row: ProgressRow,
     /// The update's full report.
     pub update: UpdateReport,
+    /// Every episode that ended in the epoch's rollout, then those of its evaluation (if it
+    /// evaluated): the rows of `episodes.csv`.
+    pub episodes: Vec<EpisodeRecord>,
 }
 
 /// A rollout collected ahead, during the previous epoch's value fit, with the seconds it took.
@@ -460,11 +462,7 @@ where
         state.env_steps += rollout.steps;
         state.elapsed_s = self.started.1 + self.started.0.elapsed().as_secs_f64();
         state.normalizer = normalizer;
-        let stats = EpisodeStats::from_episodes(
-            &rollout.returns,
-            &rollout.lengths,
-            self.config.algo.probability_factor(),
-        );
+        let stats = episode_stats(&rollout.episodes, self.config.algo.probability_factor());
         // with the pipeline, this call's time is the policy step, the value fit and the next
         // rollout's steps together: the epoch's share of the run's wall time
         let wall_s = epoch_start.elapsed().as_secs_f64();
@@ -474,7 +472,7 @@ where
             state.env_steps,
             stats.as_ref(),
             rollout.success_rate(),
-            rollout.unstable,
+            rollout.unstable(),
             &update,
             EpochTimes {
                 rollout_s,
@@ -482,6 +480,11 @@ where
                 time_s: state.elapsed_s,
             },
         );
+        let mut episodes: Vec<EpisodeRecord> = rollout
+            .episodes
+            .iter()
+            .map(|e| EpisodeRecord::new(state.epoch, Phase::Train, e))
+            .collect();
         let every = self.config.eval_every;
         if let Some(evaluator) = self.evaluator.as_mut().filter(|_| every > 0) {
             if row.epoch.is_multiple_of(every) {
@@ -496,9 +499,19 @@ where
                     evaluation.unstable,
                     start.elapsed().as_secs_f64(),
                 );
+                episodes.extend(
+                    evaluation
+                        .episodes
+                        .iter()
+                        .map(|e| EpisodeRecord::new(row.epoch, Phase::Eval, e)),
+                );
             }
         }
-        Ok(Some(EpochReport { row, update }))
+        Ok(Some(EpochReport {
+            row,
+            update,
+            episodes,
+        }))
     }
 
     /// The seed of epoch `epoch`'s streams: rank 0 draws a one-process run's, the others
@@ -530,7 +543,8 @@ where
         };
         self.collector.finish(&mut rollout, &mut self.actor);
         if self.comm.is_distributed() {
-            gather_episodes(&self.comm, &mut rollout);
+            let num_envs = self.collector.num_envs();
+            gather_episodes(&self.comm, num_envs, &mut rollout);
         }
         Some(rollout)
     }
@@ -550,33 +564,45 @@ where
     }
 }
 
-/// Every rank's episodes (in rank order), instabilities, successes and steps, on every rank.
-fn gather_episodes(comm: &Comm, rollout: &mut crate::rollout::Rollout) {
+/// The numbers that carry one [`Episode`] between ranks.
+const EPISODE_WIDTH: usize = 8;
+
+/// Every rank's episodes (in rank order, rank `r`'s environment `i` renumbered
+/// `r · num_envs + i`) and steps, on every rank.
+fn gather_episodes(comm: &Comm, num_envs: usize, rollout: &mut crate::rollout::Rollout) {
+    // every field exactly: the seed as two 32-bit halves, the rest are small integers or f64
     let mine: Vec<f64> = rollout
-        .returns
+        .episodes
         .iter()
-        .copied()
-        .chain(rollout.lengths.iter().map(|&l| l as f64))
+        .flat_map(|e| {
+            [
+                e.env as f64,
+                (e.seed >> 32) as f64,
+                (e.seed & 0xffff_ffff) as f64,
+                e.nth as f64,
+                e.ret,
+                e.length as f64,
+                f64::from(u8::from(e.unstable)),
+                e.success.map_or(-1.0, |s| f64::from(u8::from(s))),
+            ]
+        })
         .collect();
-    let (mut returns, mut lengths) = (Vec::new(), Vec::new());
-    for theirs in comm.gather(&mine) {
-        let (r, l) = theirs.split_at(theirs.len() / 2);
-        returns.extend_from_slice(r);
-        lengths.extend(l.iter().map(|&l| l as usize));
+    let mut episodes = Vec::new();
+    for (rank, theirs) in comm.gather(&mine).iter().enumerate() {
+        episodes.extend(theirs.chunks_exact(EPISODE_WIDTH).map(|e| Episode {
+            env: rank * num_envs + e[0] as usize,
+            seed: ((e[1] as u64) << 32) | e[2] as u64,
+            nth: e[3] as usize,
+            ret: e[4],
+            length: e[5] as usize,
+            unstable: e[6] != 0.0,
+            success: (e[7] >= 0.0).then_some(e[7] != 0.0),
+        }));
     }
-    let mut counts = [
-        rollout.unstable as f64,
-        rollout.steps as f64,
-        rollout.judged as f64,
-        rollout.succeeded as f64,
-    ];
-    comm.sum(&mut counts);
-    rollout.returns = returns;
-    rollout.lengths = lengths;
-    rollout.unstable = counts[0] as usize;
-    rollout.steps = counts[1] as u64;
-    rollout.judged = counts[2] as usize;
-    rollout.succeeded = counts[3] as usize;
+    let mut steps = [rollout.steps as f64];
+    comm.sum(&mut steps);
+    rollout.episodes = episodes;
+    rollout.steps = steps[0] as u64;
 }
 
 /// What is not finite after an update, if anything: a loss, the KL, the entropy, or a

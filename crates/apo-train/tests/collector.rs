@@ -1,8 +1,9 @@
 //! The collector's bootstrapping rules, against rewards-to-go computed by hand: a terminated
 //! episode ends with value 0, a truncated one with V(its final observation), one cut by the
 //! epoch with V(the current observation), an unstable one with 0 (even when it was also
-//! truncated), and an unstable episode is counted, not reported as a return. The success rate
-//! counts the last step of each stable episode whose task judges success.
+//! truncated), and an unstable episode is kept with its return, counted and flagged. The
+//! success rate counts the last step of each episode whose task judges success, an unstable
+//! one as a failure.
 
 use apo_core::flat::{from_host, unflatten};
 use apo_core::inference::{HostPolicy, HostValue};
@@ -139,15 +140,25 @@ fn bootstrapping_rules_by_hand() {
             "ret[{i}] = {got}, expected {want}"
         );
     }
-    assert_eq!(rollout.returns, vec![2.0, 3.0]);
-    assert_eq!(rollout.lengths, vec![2, 3]);
-    assert_eq!(rollout.unstable, 1);
+    // in the order they ended: env 0's and env 1's after two steps, env 0's after five
+    let returns: Vec<f64> = rollout.episodes.iter().map(|e| e.ret).collect();
+    let lengths: Vec<usize> = rollout.episodes.iter().map(|e| e.length).collect();
+    let flags: Vec<bool> = rollout.episodes.iter().map(|e| e.unstable).collect();
+    assert_eq!(returns, vec![2.0, 2.0, 3.0]);
+    assert_eq!(lengths, vec![2, 2, 3]);
+    assert_eq!(flags, vec![false, true, false]);
+    assert_eq!(rollout.unstable(), 1);
     assert_eq!(rollout.steps, 14);
-    assert_eq!((rollout.judged, rollout.success_rate()), (0, None));
+    assert_eq!(rollout.success_rate(), None);
+    // where each was played: environment, its stream's seed (the epoch's + i) and rank in it
+    let places: Vec<(usize, usize)> = rollout.episodes.iter().map(|e| (e.env, e.nth)).collect();
+    assert_eq!(places, vec![(0, 0), (1, 0), (0, 1)]);
+    let seeds: Vec<u64> = rollout.episodes.iter().map(|e| e.seed).collect();
+    assert_eq!((seeds[1], seeds[2]), (seeds[0] + 1, seeds[0]));
 }
 
 #[test]
-fn the_success_rate_counts_the_last_step_of_the_judged_stable_episodes() {
+fn the_success_rate_counts_the_last_step_of_every_judged_episode() {
     let envs = VecEnv::new(vec![
         // ends at steps 2 (success), 5 (missed), 7 (success); the one after is cut by the epoch
         Script::boxed(vec![
@@ -156,7 +167,8 @@ fn the_success_rate_counts_the_last_step_of_the_judged_stable_episodes() {
             (2, End::Reached),
             (3, End::Reached),
         ]),
-        // unstable (not counted), terminated (not judged), missed, then cut by the epoch
+        // unstable before the task judged any step (not judged), terminated (not judged),
+        // missed, then cut by the epoch
         Script::boxed(vec![
             (2, End::Unstable),
             (2, End::Terminated),
@@ -169,9 +181,37 @@ fn the_success_rate_counts_the_last_step_of_the_judged_stable_episodes() {
     let rollout = collector
         .collect(&mut actor(), 3, &AtomicBool::new(false), &mut |_| {})
         .expect("not stopped");
-    assert_eq!(rollout.returns.len(), 5);
-    assert_eq!(rollout.unstable, 1);
-    assert_eq!((rollout.judged, rollout.succeeded), (4, 2));
+    assert_eq!(rollout.episodes.len(), 6);
+    assert_eq!(rollout.unstable(), 1);
+    let judged: Vec<Option<bool>> = rollout.episodes.iter().map(|e| e.success).collect();
+    // by vector step: 2 (env 0, env 1), 4 (env 1), 5 (env 0), 7 (env 0, env 1)
+    assert_eq!(
+        judged,
+        vec![Some(true), None, None, Some(false), Some(true), Some(false)]
+    );
+    assert_eq!(rollout.success_rate(), Some(0.5));
+}
+
+#[test]
+fn an_unstable_episode_of_a_task_that_judges_success_is_a_failure() {
+    let envs = VecEnv::new(vec![Script::boxed(vec![
+        (2, End::Reached),
+        (2, End::Unstable),
+    ])])
+    .expect("one env");
+    let mut collector = Collector::from_envs(envs, 5, 0.5, 0.97, None);
+    let rollout = collector
+        .collect(&mut actor(), 3, &AtomicBool::new(false), &mut |_| {})
+        .expect("not stopped");
+    let ended: Vec<(f64, bool, Option<bool>)> = rollout
+        .episodes
+        .iter()
+        .map(|e| (e.ret, e.unstable, e.success))
+        .collect();
+    assert_eq!(
+        ended,
+        vec![(2.0, false, Some(true)), (2.0, true, Some(false))]
+    );
     assert_eq!(rollout.success_rate(), Some(0.5));
 }
 

@@ -868,3 +868,157 @@ fn a_non_finite_observation_from_the_environment_is_named_in_the_error() {
     );
     assert_eq!(trainer.state().epoch, 0, "the failed epoch does not count");
 }
+
+/// Reward 1 per step; episodes last 20 steps (truncated), except every third episode the
+/// environment plays, which a simulated simulator failure ends after 2 steps (return 2).
+struct FailsOnPurpose {
+    space: apo_envs::Space,
+    episode: usize,
+    t: usize,
+}
+
+impl FailsOnPurpose {
+    fn boxed() -> Box<dyn apo_envs::Env> {
+        Box::new(Self {
+            space: apo_envs::Space::uniform_box(1, -1.0, 1.0),
+            episode: 0,
+            t: 0,
+        })
+    }
+}
+
+impl apo_envs::Env for FailsOnPurpose {
+    fn observation_space(&self) -> &apo_envs::Space {
+        &self.space
+    }
+    fn action_space(&self) -> &apo_envs::Space {
+        &self.space
+    }
+    fn reset(&mut self, _seed: Option<u64>, obs: &mut [f32]) {
+        self.episode += 1;
+        self.t = 0;
+        obs[0] = 0.0;
+    }
+    fn step(&mut self, _action: apo_envs::Action<'_>, obs: &mut [f32]) -> apo_envs::Transition {
+        self.t += 1;
+        obs[0] = self.t as f32 / 20.0;
+        let mut step = apo_envs::Transition {
+            reward: 1.0,
+            ..Default::default()
+        };
+        if self.episode % 3 == 1 && self.t == 2 {
+            step.terminated = true;
+            step.info.unstable = true;
+        } else if self.t == 20 {
+            step.truncated = true;
+        }
+        step
+    }
+}
+
+/// Every episode counts: an episode a simulator failure ends enters the return statistics of
+/// training and of evaluation with the return it reached, and is counted and flagged, so a
+/// policy cannot raise its worst return by failing.
+#[test]
+fn an_environment_that_fails_on_purpose_cannot_raise_the_worst_return() {
+    let mut config = small(Algorithm::Trpo, "FailsOnPurpose", 2, 200);
+    config.eval_episodes = 6;
+    let envs = apo_envs::VecEnv::new(vec![FailsOnPurpose::boxed(), FailsOnPurpose::boxed()])
+        .expect("envs");
+    let mut trainer =
+        Trainer::<NdArray, _>::from_envs(config.clone(), envs, &Default::default(), |c, o, a| {
+            c.mlp_policy(o, a)
+        })
+        .expect("trainer");
+    let report = trainer
+        .epoch(&AtomicBool::new(false), &mut |_| {})
+        .expect("finite")
+        .expect("not stopped");
+    let (row, episodes) = (&report.row, &report.episodes);
+    let failed: Vec<_> = episodes.iter().filter(|e| e.unstable).collect();
+    assert!(!failed.is_empty(), "{episodes:?}");
+    assert!(failed.iter().all(|e| e.ret == 2.0 && e.length == 2));
+    assert!(episodes
+        .iter()
+        .filter(|e| !e.unstable)
+        .all(|e| e.ret == 20.0));
+    assert!(episodes
+        .iter()
+        .all(|e| e.phase == apo_train::Phase::Train && e.epoch == 1));
+    // the failed episodes are in every statistic, counted and flagged
+    assert_eq!(row.episodes, episodes.len());
+    assert_eq!(row.unstable_episodes, failed.len());
+    assert_eq!(
+        row.ep_ret_min,
+        Some(2.0),
+        "the worst return is the failed episodes'"
+    );
+    let mean = episodes.iter().map(|e| e.ret).sum::<f64>() / episodes.len() as f64;
+    assert!((row.ep_ret_mean.expect("episodes") - mean).abs() < 1e-12);
+    assert!(row.ep_ret_mean < Some(20.0) && row.ep_ret_cvar10 == Some(2.0));
+    // each environment's stream: seeded at the epoch's start, its episodes numbered in order
+    for env in 0..2 {
+        let stream: Vec<_> = episodes.iter().filter(|e| e.env == env).collect();
+        assert!(stream
+            .windows(2)
+            .all(|w| w[0].seed == w[1].seed && w[1].nth == w[0].nth + 1));
+    }
+    assert_ne!(
+        episodes[0].seed, episodes[1].seed,
+        "two environments, two seeds"
+    );
+
+    // the evaluation counts the same way
+    let mut evaluator = apo_train::Evaluator::with_env(FailsOnPurpose::boxed(), &config);
+    let mut actor = <HostActor as Actor<NdArray, MlpPolicyConfig>>::from_learner(
+        trainer.learner(),
+        trainer.value_config(),
+    );
+    let evaluation = evaluator.evaluate(&mut actor, None, 7.0);
+    let stats = evaluation.stats.expect("six episodes");
+    assert_eq!((stats.count, evaluation.unstable), (6, 2));
+    assert_eq!(stats.ret_min, 2.0);
+    assert_eq!(stats.ret_mean, (4.0 * 20.0 + 2.0 * 2.0) / 6.0);
+    assert_eq!(evaluation.episodes.iter().filter(|e| e.unstable).count(), 2);
+}
+
+/// PAPO without its penalty — `k = 0`, the same code path — is PPO bit for bit: every column
+/// but the bound's (which is computed with `k`) agrees, so comparing PAPO with PPO on the same
+/// seeds isolates the penalty. Setting ω1 = ω2 = 0 instead does not remove it: VarianceMean
+/// keeps `−min_J_sq`, and PAPO with it learns differently from PPO.
+#[test]
+fn papo_without_its_penalty_is_ppo_bit_for_bit() {
+    use apo_core::AlgoConfig;
+    let rows = |algo: Algorithm, edit: &dyn Fn(&mut apo_core::algorithm::PapoConfig)| {
+        // positive returns: min_J_sq's switch is on (with Pendulum's negative values it is off
+        // and ω = 0 alone would make PAPO PPO too)
+        let mut config = small(algo, "CartPole-v1", 3, 400);
+        if let AlgoConfig::Papo(c) = &mut config.algo {
+            edit(c);
+        }
+        let mut trainer =
+            Trainer::<NdArray, _, _>::mlp(config, &Default::default(), 1).expect("valid");
+        let mut rows = Vec::new();
+        while let Some(report) = trainer
+            .epoch(&AtomicBool::new(false), &mut |_| {})
+            .expect("finite")
+        {
+            rows.push(apo_train::ProgressRow {
+                bound: None,
+                confidence: None,
+                ..report.row.timeless()
+            });
+        }
+        rows
+    };
+    let ppo = rows(Algorithm::Ppo, &|_| {});
+    assert_eq!(rows(Algorithm::Papo, &|c| c.k = 0.0), ppo);
+    let omega_zero = rows(Algorithm::Papo, &|c| {
+        c.omega1 = 0.0;
+        c.omega2 = 0.0;
+    });
+    assert_ne!(
+        omega_zero.iter().map(|r| r.kl).collect::<Vec<_>>(),
+        ppo.iter().map(|r| r.kl).collect::<Vec<_>>()
+    );
+}

@@ -97,6 +97,7 @@ fn force_removes_only_the_files_apo_created_and_never_a_folder_with_user_files()
     for entry in [
         "config.toml",
         "progress.csv",
+        "episodes.csv",
         "train.log",
         "checkpoints",
         "apo.lock",

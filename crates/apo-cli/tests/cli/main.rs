@@ -233,6 +233,33 @@ fn evaluation_keeps_the_best_checkpoint_changes_no_training_number_and_resumes_e
     ]);
     assert_eq!(timeless(&parts), rows, "resumed run differs");
     assert_eq!(checkpoint_epoch(&parts), best);
+    // the episode record: every episode of training and of evaluation, the same when resumed,
+    // and what progress.csv's return columns are made of
+    let episodes = std::fs::read_to_string(whole.join("episodes.csv")).expect("episodes.csv");
+    assert_eq!(
+        std::fs::read_to_string(parts.join("episodes.csv")).expect("episodes.csv"),
+        episodes,
+        "the resumed run's episode record differs"
+    );
+    let records = apo_cli::episodes::read(&whole.join("episodes.csv")).expect("records");
+    for row in &rows {
+        let of = |phase| {
+            records
+                .iter()
+                .filter(|r| r.epoch == row.epoch && r.phase == phase)
+                .map(|r| r.ret)
+                .collect::<Vec<f64>>()
+        };
+        let (train, eval) = (
+            of(apo_cli::episodes::Phase::Train),
+            of(apo_cli::episodes::Phase::Eval),
+        );
+        assert_eq!(train.len(), row.episodes, "epoch {}", row.epoch);
+        assert_eq!(eval.len(), 3, "epoch {}", row.epoch);
+        let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(Some(min(&train)), row.ep_ret_min, "epoch {}", row.epoch);
+        assert_eq!(Some(min(&eval)), row.eval_ret_min, "epoch {}", row.epoch);
+    }
     // a run without evaluation has no best checkpoint, and says so
     let err = fails(&["eval", "--run", path(&plain), "--checkpoint", "best"]);
     assert!(err.contains("no best checkpoint"), "{err}");
@@ -280,6 +307,11 @@ fn resumed_run_matches_uninterrupted_run() {
             timeless(&parts),
             timeless(&whole),
             "{algo}: resumed run differs"
+        );
+        assert_eq!(
+            std::fs::read(parts.join("episodes.csv")).expect("episodes.csv"),
+            std::fs::read(whole.join("episodes.csv")).expect("episodes.csv"),
+            "{algo}: resumed episode record differs"
         );
     }
 }

@@ -38,8 +38,15 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     let success = result
         .success_rate()
         .map_or_else(String::new, |rate| format!(" success_rate={rate:.3}"));
+    // every episode counts; those a simulator failure ended are counted and flagged
+    let unstable = result.unstable.iter().filter(|&&u| u).count();
+    let unstable = if unstable > 0 {
+        format!(" unstable_episodes={unstable}")
+    } else {
+        String::new()
+    };
     println!(
-        "checkpoint_epoch={epoch} episodes={} mean_return={:.3} std_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}{success}",
+        "checkpoint_epoch={epoch} episodes={} mean_return={:.3} std_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}{success}{unstable}",
         stats.count, stats.ret_mean, stats.ret_std, stats.ret_min, stats.ret_max, stats.len_mean
     );
     Ok(())
