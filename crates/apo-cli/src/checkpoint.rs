@@ -86,7 +86,9 @@ impl TrainState {
     }
 }
 
-/// The shapes of a run's networks: recorded in each checkpoint and checked on load.
+/// What a checkpoint was trained with: the shapes of its networks and every config value that
+/// can change what the run learns ([`RunConfig::learned_with`]); recorded in each checkpoint
+/// and checked on load, so that a run stays bound to the config it was trained with.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Shapes {
     /// Observation dimension (the networks' input).
@@ -97,6 +99,10 @@ pub struct Shapes {
     pub hidden: Vec<usize>,
     /// Whether the observations are normalized (the normalizer is then in `state.json`).
     pub normalize_obs: bool,
+    /// The config values the run learned with, by dotted key (empty in checkpoints written
+    /// before runs recorded them: those are not checked).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub learned_with: BTreeMap<String, String>,
 }
 
 impl Shapes {
@@ -107,8 +113,38 @@ impl Shapes {
             action,
             hidden: config.train.hidden.clone(),
             normalize_obs: config.train.normalize_obs,
+            learned_with: config.learned_with(),
         }
     }
+
+    /// The same shapes without the config values (the networks alone).
+    fn networks(&self) -> Self {
+        Self {
+            learned_with: BTreeMap::new(),
+            ..self.clone()
+        }
+    }
+}
+
+/// The keys whose values differ between what a checkpoint was trained with (`trained`) and
+/// the run's config now (`now`), each as `key = now (trained with: was)`; a key on one side
+/// only shows `(none)` on the other.
+fn config_changes(
+    trained: &BTreeMap<String, String>,
+    now: &BTreeMap<String, String>,
+) -> Vec<String> {
+    let keys: std::collections::BTreeSet<&String> = trained.keys().chain(now.keys()).collect();
+    keys.into_iter()
+        .filter(|k| trained.get(*k) != now.get(*k))
+        .map(|k| {
+            let shown = |v: Option<&String>| v.map_or("(none)".to_string(), Clone::clone);
+            format!(
+                "{k} = {} (trained with: {})",
+                shown(now.get(k)),
+                shown(trained.get(k))
+            )
+        })
+        .collect()
 }
 
 impl fmt::Display for Shapes {
@@ -650,7 +686,7 @@ fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
             );
         }
     }
-    if &manifest.shapes != shapes {
+    if manifest.shapes.networks() != shapes.networks() {
         bail!(
             "the networks in {} ({}) do not fit this run ({}): the checkpoint is from another run or config.toml was edited",
             from.display(),
@@ -658,7 +694,58 @@ fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
             shapes
         );
     }
+    check_learned_with(from, &manifest.shapes, shapes)
+}
+
+/// Refuses, naming the keys, a run whose config now (`now`) differs from what the checkpoint
+/// in `from` was trained with (`trained`, from its manifest); a checkpoint written before runs
+/// recorded their config is not checked (a warning says so).
+fn check_learned_with(from: &Path, trained: &Shapes, now: &Shapes) -> anyhow::Result<()> {
+    if trained.learned_with.is_empty() {
+        tracing::warn!(checkpoint = %from.display(), "checkpoint written before runs recorded their config: config.toml is not checked against it");
+        return Ok(());
+    }
+    let changes = config_changes(&trained.learned_with, &now.learned_with);
+    if !changes.is_empty() {
+        let run = from
+            .parent()
+            .and_then(Path::parent)
+            .unwrap_or(from)
+            .display();
+        bail!(
+            "{run}/config.toml differs from what the checkpoint in {} was trained with: {}. A run stays bound to the \
+             config it learned with (only {} may change); to train the edited config, start a new run from it: \
+             apo train --config {run}/config.toml --out <new folder>",
+            from.display(),
+            changes.join("; "),
+            crate::config::RESUMABLE_KEYS.join(", ")
+        );
+    }
     Ok(())
+}
+
+/// Checks that `config` (the run's `config.toml`) gives every value its latest checkpoint was
+/// trained with, reading only the checkpoint's manifest (for readers of results, which load no
+/// network); a run without a checkpoint, or whose checkpoint predates the record, passes.
+///
+/// # Errors
+/// A manifest that cannot be read, or the keys whose values differ.
+pub fn check_bound(run: &Path, config: &RunConfig) -> anyhow::Result<()> {
+    let Some(from) = locate(run, &Which::Latest)? else {
+        return Ok(());
+    };
+    let path = from.join(MANIFEST);
+    if std::fs::symlink_metadata(&path).is_err() {
+        return Ok(());
+    }
+    let text = crate::input::read_text(&path, "checkpoint manifest", crate::input::SMALL_FILE)?;
+    let manifest: Manifest = serde_json::from_str(&text)
+        .with_context(|| format!("{} is corrupt (not a checkpoint manifest)", path.display()))?;
+    let now = Shapes {
+        learned_with: config.learned_with(),
+        ..manifest.shapes.clone()
+    };
+    check_learned_with(&from, &manifest.shapes, &now)
 }
 
 /// Runs `f`, turning a panic inside it (a malformed record deep in Burn) into an error.

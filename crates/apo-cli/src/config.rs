@@ -6,6 +6,7 @@
 //! and the closest known key, a value of the wrong type names the key and the expected
 //! type, and out-of-range values name the field and the rule.
 
+use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
 
@@ -355,10 +356,59 @@ impl RunConfig {
         Ok(())
     }
 
+    /// Every value of the configuration that can change what a run learns, by dotted key
+    /// (`env`, `algo.papo.omega1`, …) — every key but [`RESUMABLE_KEYS`] — as TOML text. A
+    /// checkpoint records it, and a run whose `config.toml` no longer gives the same values is
+    /// refused by `eval`, `render`, `train --resume` and `report`.
+    pub fn learned_with(&self) -> BTreeMap<String, String> {
+        let mut values = BTreeMap::new();
+        if let Ok(toml::Value::Table(table)) = toml::Value::try_from(self) {
+            flatten("", &toml::Value::Table(table), &mut values);
+        }
+        values.retain(|key, _| !RESUMABLE_KEYS.contains(&key.as_str()));
+        values
+    }
+
     /// The configuration as TOML text.
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self)
             .unwrap_or_else(|e| format!("# could not serialize the config: {e}\n"))
+    }
+}
+
+/// The keys that cannot change what a run learns — the epoch target, the checkpoint and
+/// evaluation cadence, videos, and the pipelined schedule (bit-identical to the sequential
+/// one): the only ones a run's `config.toml` may change between its checkpoint and a resume,
+/// an evaluation or a report.
+pub const RESUMABLE_KEYS: &[&str] = &[
+    "epochs",
+    "checkpoint_every",
+    "keep_checkpoint_every",
+    "eval_every",
+    "eval_episodes",
+    "eval_deterministic",
+    "eval_best",
+    "render_every",
+    "pipeline",
+];
+
+/// `value` flattened into `out` by dotted key under `prefix`; arrays and scalars are leaves,
+/// written as TOML text.
+fn flatten(prefix: &str, value: &toml::Value, out: &mut BTreeMap<String, String>) {
+    match value {
+        toml::Value::Table(table) => {
+            for (key, value) in table {
+                let key = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                flatten(&key, value, out);
+            }
+        }
+        leaf => {
+            out.insert(prefix.to_string(), leaf.to_string());
+        }
     }
 }
 

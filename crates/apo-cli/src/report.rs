@@ -259,6 +259,9 @@ pub fn report(
     for dir in runs {
         let config = RunConfig::load(&dir.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", dir.display()))?;
+        // a run is reported with the config it learned with
+        crate::checkpoint::check_bound(dir, &config)
+            .with_context(|| format!("run {}", dir.display()))?;
         targets.insert(
             dir.clone(),
             (config.train.epochs, config.train.algo.probability_factor()),

@@ -20,13 +20,13 @@ pub struct TheoryArgs {
     /// Random MDPs (seeds 0..N) for checks (a), (b) and (d).
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     pub seeds: u64,
-    /// Discount γ ∈ [0, 1).
+    /// Discount γ ∈ [0, 0.999] (check (d) samples episodes of about ln(1e-9)/ln γ steps).
     #[arg(long, default_value_t = 0.9)]
     pub gamma: f64,
-    /// Probability factors k (comma-separated, ≥ 0).
+    /// Probability factors k (comma-separated, each in [0, 1000]).
     #[arg(long, value_delimiter = ',', default_values_t = [0.1, 1.0, 7.0])]
     pub k: Vec<f64>,
-    /// Scale of π_j's random logits.
+    /// Scale of π_j's random logits, in [0, 100].
     #[arg(long, default_value_t = 1.0)]
     pub temperature: f64,
     /// Candidates per distance from π_j (distances 1e-3 … 3 in logit space).
@@ -47,7 +47,7 @@ pub struct TheoryArgs {
     /// Gradient-ascent steps per update in check (c).
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=10_000))]
     pub ascent_steps: u64,
-    /// The trust region δ of the practical surrogate in check (c).
+    /// The trust region δ of the practical surrogate in checks (c) and (e), in (0, 1].
     #[arg(long, default_value_t = 0.02)]
     pub max_kl: f64,
     /// MDPs (seeds 0..N) for check (d), Selberg's inequality.
@@ -64,10 +64,10 @@ pub struct TheoryArgs {
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=10_000))]
     pub practical_iterations: u64,
     /// Added to every reward in check (e) (a positive offset: positive values, as with the
-    /// survival bonus of the locomotion tasks).
+    /// survival bonus of the locomotion tasks), in [−1e6, 1e6].
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub reward_offset: f64,
-    /// Multiplies every reward in check (e), after the offset (> 0).
+    /// Multiplies every reward in check (e), after the offset, in (0, 1e6].
     #[arg(long, default_value_t = 1.0)]
     pub reward_scale: f64,
     /// Run check (e) only.
@@ -77,29 +77,42 @@ pub struct TheoryArgs {
 
 impl TheoryArgs {
     fn validate(&self) -> anyhow::Result<(Problems, Reading)> {
-        if !(0.0..1.0).contains(&self.gamma) {
-            bail!("--gamma {} must be in [0, 1)", self.gamma);
+        // every number has a finite range, chosen so that each check stays finite and bounded in
+        // time: logits, steps and returns stay far from overflow, and check (d) samples at most
+        // MAX_SELBERG_STEPS steps
+        let within = |flag: &str, v: f64, low: f64, high: f64, open_low: bool| {
+            let above = if open_low { v > low } else { v >= low };
+            if v.is_finite() && above && v <= high {
+                Ok(())
+            } else {
+                let bracket = if open_low { '(' } else { '[' };
+                Err(anyhow::anyhow!(
+                    "{flag} {v} is out of its range {bracket}{low}, {high}]"
+                ))
+            }
+        };
+        within("--gamma", self.gamma, 0.0, MAX_GAMMA, false)?;
+        for &k in &self.k {
+            within("--k", k, 0.0, 1000.0, false)?;
         }
-        if let Some(k) = self.k.iter().find(|k| !(k.is_finite() && **k >= 0.0)) {
-            bail!("--k {k} must be a finite number ≥ 0");
-        }
-        if !(self.temperature.is_finite() && self.temperature >= 0.0) {
+        within("--temperature", self.temperature, 0.0, 100.0, false)?;
+        within("--reward-offset", self.reward_offset, -1e6, 1e6, false)?;
+        within("--reward-scale", self.reward_scale, 0.0, 1e6, true)?;
+        within("--max-kl", self.max_kl, 0.0, 1.0, true)?;
+        let steps = self.selberg_seeds as f64
+            * self.k.len() as f64
+            * self.episodes as f64
+            * selberg_horizon(self.gamma) as f64;
+        if steps > MAX_SELBERG_STEPS {
             bail!(
-                "--temperature {} must be a finite number ≥ 0",
-                self.temperature
+                "check (d) would sample {steps:.3e} steps (--selberg-seeds {} × {} k × --episodes {} × horizon {} at --gamma {}), \
+                 more than {MAX_SELBERG_STEPS:.0e}: lower --selberg-seeds, --episodes or --gamma",
+                self.selberg_seeds,
+                self.k.len(),
+                self.episodes,
+                selberg_horizon(self.gamma),
+                self.gamma
             );
-        }
-        if !self.reward_offset.is_finite() {
-            bail!("--reward-offset {} must be finite", self.reward_offset);
-        }
-        if !(self.reward_scale.is_finite() && self.reward_scale > 0.0) {
-            bail!(
-                "--reward-scale {} must be a finite number > 0",
-                self.reward_scale
-            );
-        }
-        if !(self.max_kl.is_finite() && self.max_kl > 0.0) {
-            bail!("--max-kl {} must be > 0", self.max_kl);
         }
         let norm = Reading {
             mu_norm: match self.mu_norm.as_str() {
@@ -287,6 +300,12 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
     );
     Ok(())
 }
+
+/// The largest discount `apo theory` accepts: check (d)'s horizon is then 20 713 steps.
+const MAX_GAMMA: f64 = 0.999;
+
+/// The most environment steps check (d) may sample (a few minutes on one core).
+const MAX_SELBERG_STEPS: f64 = 2e9;
 
 /// A horizon at which `γ^h < 1e-9` (the returns' truncation).
 fn selberg_horizon(gamma: f64) -> usize {

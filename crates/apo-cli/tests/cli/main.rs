@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use apo_cli::progress::{self, ProgressRow};
 
+mod bound_config;
 mod hardening;
 mod lose_nothing;
 mod physics;

@@ -77,4 +77,56 @@ fn theory_refuses_bad_options() {
         let err = fails(&args);
         assert!(err.contains(culprit), "{args:?}: {err}");
     }
+    // every number has a finite range, named with the flag, chosen so that the checks stay
+    // finite and bounded in time (a δ of 1e308 overflowed the logits; a γ of 0.9999999999 made
+    // check (d) run for hours)
+    for (flag, value, range) in [
+        ("--max-kl", "1e308", "(0, 1]"),
+        ("--gamma", "0.9999999999", "[0, 0.999]"),
+        ("--k", "1e308", "[0, 1000]"),
+        ("--temperature", "inf", "[0, 100]"),
+        ("--reward-scale", "1e300", "(0, 1000000]"),
+        ("--reward-offset", "-1e300", "[-1000000, 1000000]"),
+    ] {
+        let err = fails(&["theory", &format!("{flag}={value}")]);
+        assert!(
+            err.contains(flag) && err.contains(range),
+            "{flag} {value}: {err}"
+        );
+    }
+    // the steps check (d) would sample are counted before it starts
+    let err = fails(&["theory", "--gamma", "0.999", "--selberg-seeds", "1000"]);
+    assert!(
+        err.contains("check (d) would sample") && err.contains("--episodes"),
+        "{err}"
+    );
+    // the ends of the ranges run, and quickly
+    ok(&[
+        "theory",
+        "--seeds",
+        "2",
+        "--iteration-seeds",
+        "1",
+        "--iterations",
+        "2",
+        "--selberg-seeds",
+        "1",
+        "--episodes",
+        "50",
+        "--practical-seeds",
+        "1",
+        "--practical-iterations",
+        "2",
+        "--max-kl",
+        "1",
+        "--gamma",
+        "0.999",
+        "--k",
+        "0,1000",
+        "--temperature",
+        "100",
+        "--reward-scale",
+        "1e6",
+        "--reward-offset=-1e6",
+    ]);
 }
