@@ -87,7 +87,10 @@ impl TheoryArgs {
             } else {
                 let bracket = if open_low { '(' } else { '[' };
                 Err(anyhow::anyhow!(
-                    "{flag} {v} is out of its range {bracket}{low}, {high}]"
+                    "{flag} {} is out of its range {bracket}{}, {}]",
+                    number(v),
+                    number(low),
+                    number(high)
                 ))
             }
         };
@@ -299,6 +302,15 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
         args.episodes
     );
     Ok(())
+}
+
+/// `v` as a user reads it: scientific notation when it is very large or very small.
+fn number(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e5).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// The largest discount `apo theory` accepts: check (d)'s horizon is then 20 713 steps.
