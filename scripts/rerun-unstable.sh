@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Re-runs, with the current binary, every committed run whose progress.csv has an epoch with
-# unstable_episodes > 0, so that its return statistics count the episodes ended by a simulator
+# unstable_episodes > 0 and that has no episodes.csv yet (one written by a binary that counts
+# every episode), so that its return statistics count the episodes ended by a simulator
 # failure (the binaries that wrote the committed runs left them out). Runs are bit-reproducible:
 # a re-run differs from the committed one only in those epochs' return columns (check with
 # scripts/rerun-compare.py, which also copies the new files over the committed ones).
@@ -48,6 +49,10 @@ if ! grep -q -- '--quiet' <<<"$help"; then
 fi
 session=()
 command -v setsid >/dev/null && session=(setsid)  # runs out of the terminal's Ctrl-C: we pass it on once
+# a new session is a new scheduler autogroup (Linux with CONFIG_SCHED_AUTOGROUP), where nice -n 19
+# no longer yields to other sessions' work (a build beside the runs got a third of the CPU): each
+# run lowers its own group's share too (best effort; /proc/self/autogroup exists only there)
+niced=(sh -c 'echo 19 > /proc/self/autogroup 2>/dev/null; exec "$@"' sh)
 
 # the top-level `epochs` key of a config.toml (before its first [table])
 config_epochs() { awk '/^[[:space:]]*\[/{exit} /^[[:space:]]*epochs[[:space:]]*=/{sub(/^[^=]*=[[:space:]]*/,""); sub(/[[:space:]#].*$/,""); print; exit}' "$1"; }
@@ -87,6 +92,9 @@ for s in "${ordered[@]}"; do
     while IFS= read -r p; do
       run=${p%/progress.csv}
       [ -f "$run/config.toml" ] || continue
+      # a run that has its episodes.csv was written (or already replaced) by a binary that
+      # counts every episode: nothing to re-derive
+      [ -f "$run/episodes.csv" ] && continue
       has_unstable "$p" && tasks+=("${run#./}")
     done < <(find "$r/$s" -name progress.csv -type f | LC_ALL=C sort)
   done
@@ -125,7 +133,7 @@ launch() {
   local name=$1 log=$2; shift 2
   (
     trap '' INT
-    ${session[@]+"${session[@]}"} "$@" </dev/null >>"$log" 2>&1 9>&- &
+    ${session[@]+"${session[@]}"} "${niced[@]}" "$@" </dev/null >>"$log" 2>&1 9>&- &
     child=$!
     signalled=0
     trap 'signalled=1; kill -TERM "$child" 2>/dev/null || true' TERM
