@@ -47,6 +47,15 @@ impl ConfigError {
 }
 
 /// Whether `x` is finite and ≥ 0.
+/// `x` as a user reads it: scientific notation when it is very large or very small.
+pub(crate) fn shown(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        x.to_string()
+    }
+}
+
 pub(crate) fn finite_nonneg(x: f64) -> bool {
     x.is_finite() && x >= 0.0
 }

@@ -58,6 +58,12 @@ fn help_shows_defaults_and_config_prints_every_key_documented() {
     assert_eq!(again, text);
     let err = fails(&["config", "--algo", "apo", "--set", "algo.k=-1"]);
     assert!(err.contains("`algo.apo.k` = -1"), "{err}");
+    // every number has a range: a k of 1e308 is named with it, not left to overflow the loss
+    let err = fails(&["config", "--algo", "papo", "--set", "algo.k=1e308"]);
+    assert!(
+        err.contains("`algo.papo.k` = 1e308") && err.contains("[0, 1000]"),
+        "{err}"
+    );
 }
 
 #[test]

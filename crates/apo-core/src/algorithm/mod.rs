@@ -32,7 +32,7 @@ use crate::objective::{ApoParams, HMax, Objective, PenaltyUnits, Switch};
 use crate::proximal::{ProximalConfig, ProximalStep};
 use crate::trust_region::TrustRegionConfig;
 pub use crate::validate::ConfigError;
-pub(crate) use crate::validate::{check, finite_nonneg};
+pub(crate) use crate::validate::{check, finite_nonneg, shown};
 
 pub use a2c::A2cConfig;
 pub use alpha_ppo::AlphaPpoConfig;
@@ -151,20 +151,17 @@ impl Penalty {
     };
 
     fn validate(&self) -> Result<(), ConfigError> {
-        check(finite_nonneg(self.k), "k", self.k, "must be ≥ 0")?;
-        check(
-            finite_nonneg(self.omega1),
-            "omega1",
-            self.omega1,
-            "must be ≥ 0",
-        )?;
-        check(
-            finite_nonneg(self.omega2),
-            "omega2",
-            self.omega2,
-            "must be ≥ 0",
-        )
+        // bounded so that the penalty stays finite in f32 (a k of 1e308 made the policy loss
+        // infinite and the error named the learning rates, not k)
+        let within = |x: f64| finite_nonneg(x) && x <= Self::MAX;
+        let rule = "must be in [0, 1000]";
+        check(within(self.k), "k", shown(self.k), rule)?;
+        check(within(self.omega1), "omega1", shown(self.omega1), rule)?;
+        check(within(self.omega2), "omega2", shown(self.omega2), rule)
     }
+
+    /// The largest k, ω1 and ω2 accepted.
+    const MAX: f64 = 1000.0;
 
     /// The objective's parameters for discount `gamma`.
     fn params(&self, gamma: f64) -> ApoParams {
@@ -182,14 +179,14 @@ impl Penalty {
     }
 
     const KEY_DOCS: [(&'static str, &'static str); 6] = [
-        ("k", "probability factor k of the bound J − k·Var (paper: 7); ≥ 0"),
+        ("k", "probability factor k of the bound J − k·Var (paper: 7); [0, 1000]"),
         (
             "omega1",
-            "ω1, stands for ‖μ‖∞/(1−γ²) (paper grid 0.001..0.01); ≥ 0",
+            "ω1, stands for ‖μ‖∞/(1−γ²) (paper grid 0.001..0.01); [0, 1000]",
         ),
         (
             "omega2",
-            "ω2, stands for |H|_max when h_max = \"hyperparameter\"; ≥ 0",
+            "ω2, stands for |H|_max when h_max = \"hyperparameter\"; [0, 1000]",
         ),
         (
             "h_max",

@@ -323,6 +323,8 @@ fn config_validation_names_the_bad_field() {
         ),
         ("gamma", apo(&|c| c.gamma = 1.0)),
         ("k", apo(&|c| c.k = -1.0)),
+        ("k", apo(&|c| c.k = 1e308)),
+        ("omega2", papo(&|c| c.omega2 = 1e9)),
         ("trust_region.max_kl", apo(&|c| c.trust_region.max_kl = 0.0)),
         ("clip", papo(&|c| c.clip = 1.5)),
         ("lambda", papo(&|c| c.lambda = 1.5)),
