@@ -3,7 +3,8 @@
 //! content, never a part or an empty file.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Writes `bytes` to `path` atomically and durably: readers see the old or the new content,
 /// never a part, and the new content survives a power loss once this returns.
@@ -13,19 +14,74 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let tmp = dir.join(temp_name(&name));
-    {
-        let mut file = std::fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
+    let (tmp, mut file) = create_temp(dir, &name)?;
+    let written = file
+        .write_all(bytes)
+        .and_then(|()| file.sync_all())
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
     }
-    std::fs::rename(&tmp, path)?;
     sync_dir(dir)
 }
 
-/// The name of the temporary file [`write()`] uses for a file named `name`.
-pub fn temp_name(name: &str) -> String {
-    format!(".{name}.tmp")
+/// Temporary files made by this process so far (their names are unique with the process id).
+static TEMPS: AtomicU64 = AtomicU64::new(0);
+
+/// Creates a new temporary file for a file named `name` in `dir`: `.<name>.apo-<pid>-<n>.tmp`,
+/// a name no other process or call uses, opened with `create_new` so that no existing file
+/// (a user's, another apo's) is ever written over.
+///
+/// # Errors
+/// The OS error of the creation.
+pub fn create_temp(dir: &Path, name: &str) -> std::io::Result<(PathBuf, std::fs::File)> {
+    loop {
+        let n = TEMPS.fetch_add(1, Ordering::Relaxed);
+        let tmp = dir.join(format!(".{name}.apo-{}-{n}.tmp", std::process::id()));
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+        {
+            Ok(file) => return Ok((tmp, file)),
+            // left by an earlier process of the same id: take the next number
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// The name of the file whose temporary file apo made `entry` is
+/// (`.<name>.apo-<pid>-<n>.tmp`, or `.<name>.tmp` of earlier versions); `None` for any other
+/// name. Those are the only temporary files apo removes.
+pub fn temp_target(entry: &str) -> Option<&str> {
+    let inner = entry.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let digits = |p: &str| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit());
+    if let Some((name, ids)) = inner.rsplit_once(".apo-") {
+        if let Some((pid, n)) = ids.split_once('-') {
+            if digits(pid) && digits(n) && !name.is_empty() {
+                return Some(name);
+            }
+        }
+    }
+    (!inner.is_empty()).then_some(inner)
+}
+
+/// Whether `entry` is a temporary file apo made for a file named `name` ([`temp_target`]).
+pub fn is_temp_of(entry: &str, name: &str) -> bool {
+    temp_target(entry) == Some(name)
+}
+
+/// The temporary files apo made for the files `names` in `dir` ([`is_temp_of`]).
+pub fn temps_of(dir: &Path, names: &[String]) -> Vec<String> {
+    let Ok(entries) = crate::removal::entry_names(dir) else {
+        return Vec::new();
+    };
+    entries
+        .into_iter()
+        .filter(|e| names.iter().any(|n| is_temp_of(e, n)))
+        .collect()
 }
 
 /// Syncs the file at `path` (its data and metadata) to the disk.
@@ -51,5 +107,43 @@ pub fn parent(path: &Path) -> &Path {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temporary_files_have_unique_names_and_never_replace_a_file() {
+        let tmp = tempfile::tempdir().expect("tempdir");
+        let (a, _) = create_temp(tmp.path(), "x.csv").expect("first");
+        let (b, _) = create_temp(tmp.path(), "x.csv").expect("second");
+        assert_ne!(a, b);
+        for p in [&a, &b] {
+            let name = p.file_name().expect("name").to_string_lossy().into_owned();
+            assert!(is_temp_of(&name, "x.csv"), "{name}");
+            assert!(!is_temp_of(&name, "x"), "{name}");
+        }
+        // a user's file of the old fixed name, or of a similar name, is not apo's
+        assert!(is_temp_of(".x.csv.tmp", "x.csv"));
+        for user in [
+            ".x.csv.mine.tmp",
+            ".x.csv.apo-1.tmp",
+            ".x.csv.apo-1-2-3.tmp",
+            "x.csv.tmp",
+            ".x.csv.apo--1.tmp",
+        ] {
+            assert!(!is_temp_of(user, "x.csv"), "{user}");
+        }
+        let target = tmp.path().join("x.csv");
+        std::fs::write(tmp.path().join(".x.csv.tmp"), "user's").expect("write");
+        write(&target, b"new").expect("atomic write");
+        assert_eq!(std::fs::read(&target).expect("read"), b"new");
+        assert_eq!(
+            std::fs::read(tmp.path().join(".x.csv.tmp")).expect("read"),
+            b"user's",
+            "a file of the old temporary name is left alone by a write"
+        );
     }
 }

@@ -26,7 +26,7 @@ use apo_train::RunState;
 use burn::backend::Autodiff;
 use burn::module::Module;
 use burn::optim::Optimizer;
-use burn::record::{FullPrecisionSettings, NamedMpkFileRecorder, Recorder};
+use burn::record::{FullPrecisionSettings, NamedMpkBytesRecorder, NamedMpkFileRecorder, Recorder};
 use burn::tensor::backend::Backend;
 use serde::{Deserialize, Serialize};
 
@@ -305,14 +305,12 @@ pub fn save_best<B: Backend>(
 /// The folder of the best evaluation's checkpoint in `checkpoints/`.
 const BEST: &str = "best";
 
-/// The files a checkpoint folder consists of (with the temporary names of those written
-/// atomically): the only files apo removes from one.
-fn checkpoint_files() -> Vec<String> {
+/// The files of the checkpoint folder `dir` (with the temporary files apo made for them): the
+/// only files apo removes from one.
+fn checkpoint_files(dir: &Path) -> Vec<String> {
     let mut files: Vec<String> = RECORDS.iter().map(|r| format!("{r}.mpk")).collect();
-    for name in [STATE, MANIFEST] {
-        files.push(name.to_string());
-        files.push(atomic::temp_name(name));
-    }
+    files.extend([STATE.to_string(), MANIFEST.to_string()]);
+    files.extend(atomic::temps_of(dir, &files));
     files
 }
 
@@ -335,7 +333,7 @@ fn clear(path: &Path) -> anyhow::Result<()> {
     if std::fs::symlink_metadata(path).is_err() {
         return Ok(());
     }
-    let left = crate::removal::remove_created(path, &checkpoint_files(), true)?;
+    let left = crate::removal::remove_created(path, &checkpoint_files(path), true)?;
     if left.is_empty() {
         return Ok(());
     }
@@ -373,15 +371,34 @@ pub fn remove_checkpoints(root: &Path) -> anyhow::Result<()> {
     let Ok(entries) = std::fs::read_dir(root) else {
         return Ok(());
     };
-    let files = checkpoint_files();
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         if is_checkpoint_name(&name) && entry.file_type().is_ok_and(|t| t.is_dir()) {
+            let files = checkpoint_files(&entry.path());
             crate::removal::remove_created(&entry.path(), &files, true)?;
         }
     }
     crate::removal::remove_created(root, &[], true)?;
     Ok(())
+}
+
+/// `record` in the format of the checkpoint's `.mpk` files (named MessagePack, full
+/// precision), in memory.
+fn encode<BK: Backend, R: burn::record::Record<BK>>(record: R) -> anyhow::Result<Vec<u8>> {
+    Recorder::<BK>::record(
+        &NamedMpkBytesRecorder::<FullPrecisionSettings>::new(),
+        record,
+        (),
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// Creates `path` (in a fresh folder) with `bytes`, synced; errors are the OS's.
+fn write_synced(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut file = std::fs::File::create(path)?;
+    file.write_all(bytes)?;
+    file.sync_all()
 }
 
 /// Writes and syncs every file of a checkpoint into the fresh directory `tmp`.
@@ -395,19 +412,22 @@ fn write_into<B: Backend>(
     std::fs::create_dir_all(tmp)?;
     let (policy, value) = learner.networks();
     let (policy_optim, value_optim) = learner.optimizers();
-    let rec = recorder();
-    policy
-        .clone()
-        .save_file(tmp.join("policy"), &rec)
-        .context("saving the policy")?;
-    value
-        .clone()
-        .save_file(tmp.join("value"), &rec)
-        .context("saving the value network")?;
-    rec.record(policy_optim.to_record(), tmp.join("policy_optim"))
-        .context("saving the policy optimizer")?;
-    rec.record(value_optim.to_record(), tmp.join("value_optim"))
-        .context("saving the value optimizer")?;
+    // each record is encoded in memory and written by us, so that a failed write names the
+    // OS's error (`No space left on device`), which Burn's file recorder reports as an
+    // encoding error
+    type Ad<B> = burn::backend::Autodiff<B>;
+    let records: [(&str, anyhow::Result<Vec<u8>>); 4] = [
+        ("policy", encode::<Ad<B>, _>(policy.clone().into_record())),
+        ("value", encode::<Ad<B>, _>(value.clone().into_record())),
+        ("policy_optim", encode::<Ad<B>, _>(policy_optim.to_record())),
+        ("value_optim", encode::<Ad<B>, _>(value_optim.to_record())),
+    ];
+    for (record, encoded) in records {
+        let path = tmp.join(format!("{record}.mpk"));
+        let encoded = encoded.with_context(|| format!("encoding {record}"))?;
+        write_synced(&path, &encoded)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
     atomic::write(
         &tmp.join(STATE),
         serde_json::to_string_pretty(&TrainState {
@@ -762,4 +782,23 @@ fn no_panic<T>(f: impl FnOnce() -> T) -> anyhow::Result<T> {
             .unwrap_or_else(|| "unknown panic".to_string());
         anyhow::anyhow!("reading it failed: {message}")
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_disk_is_named_by_the_os_error() {
+        // /dev/full answers every write with ENOSPC, as a full disk does
+        let err = write_synced(Path::new("/dev/full"), &[0u8; 4096])
+            .map_err(anyhow::Error::from)
+            .context("cannot write checkpoints/.tmp-1/policy.mpk")
+            .expect_err("a full device");
+        let message = format!("{err:#}");
+        assert!(
+            message.contains("No space left on device") && message.contains("policy.mpk"),
+            "{message}"
+        );
+    }
 }

@@ -265,11 +265,12 @@ impl RunConfig {
             let (key, value) = set
                 .split_once('=')
                 .ok_or_else(|| ConfigFileError::BadSet(set.clone()))?;
-            set_path(
-                &mut doc,
-                &in_section(key.trim(), algo),
-                parse_value(value.trim()),
-            )?;
+            let path = in_section(key.trim(), algo);
+            let value = parse_value(value.trim()).map_err(|message| ConfigFileError::Type {
+                key: path.clone(),
+                message,
+            })?;
+            set_path(&mut doc, &path, value)?;
         }
         let config = Self::from_table(doc)?;
         config.validate()?;
@@ -424,20 +425,20 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("normalize_obs", "normalize observations with running statistics (saved in checkpoints); true/false"),
     ("backend", "backend of the updates: \"cpu\" (NdArray) or \"wgpu\""),
     ("kernels", "where the Fisher-vector products, the proximal policy steps and the value fit run: \"host\" (apo's f32 CPU kernels), \"backend\" (Burn's graph on `backend`) or \"auto\" (host with cpu, backend with wgpu)"),
-    ("checkpoint_every", "write a checkpoint every this many epochs (and at the end and on interrupt); ≥ 1"),
-    ("keep_checkpoint_every", "also keep every this many epochs' checkpoint as checkpoints/epoch-<N> (`apo eval --checkpoint N`); 0 = off"),
+    ("checkpoint_every", "write a checkpoint every this many epochs (and at the end and on interrupt); 1..=1000000000"),
+    ("keep_checkpoint_every", "also keep every this many epochs' checkpoint as checkpoints/epoch-<N> (`apo eval --checkpoint N`); 0 = off; 0..=1000000000"),
     ("hidden", "hidden layer sizes of the policy and value MLPs, tanh (paper: [64, 64]); 1..=64 layers of 1..=1048576"),
     ("init_log_std", "initial state-independent log standard deviation of Gaussian policies; [-20, 2]"),
     ("bootstrap_time_limit", "bootstrap episodes cut by the time limit from V(final observation); false: from 0, as the paper's code on Gym MuJoCo; true/false"),
     ("actions", "how Gaussian actions reach the environment: \"rescale\" (policy acts in [-1, 1], mapped to the box and clipped) or \"raw\" (unscaled, unclipped, as the paper's code)"),
     ("episode_reset", "how episodes start: \"epoch\" (each epoch reseeds from the run's seed, later episodes continue the stream) or \"run_seed\" (every episode reset with the run's seed, as the paper's code on Gym MuJoCo and the hands)"),
-    ("max_episode_steps", "truncate episodes after this many steps (the paper's maximum trajectory length, 1000 on every suite); 0 = the environment's registered limit (`apo list`)"),
+    ("max_episode_steps", "truncate episodes after this many steps (the paper's maximum trajectory length, 1000 on every suite); 0 = the environment's registered limit (`apo list`); 0..=1000000000"),
     ("physics", "the physics of MuJoCo environments: \"mujoco2\" (MuJoCo 2.2.2, Debian's libmujoco-dev) or \"mujoco3\" (MuJoCo 3.17 through mujoco-rs; a build with --features mujoco3, docs/mujoco.md)"),
-    ("eval_every", "evaluate the policy every this many epochs on its own environment and seeds (eval_* columns of progress.csv; training is unchanged); 0 = never"),
+    ("eval_every", "evaluate the policy every this many epochs on its own environment and seeds (eval_* columns of progress.csv; training is unchanged); 0 = never; 0..=1000000000"),
     ("eval_episodes", "episodes of each evaluation; 1..=1000000"),
     ("eval_deterministic", "evaluate with the most likely action (a Gaussian's mean) instead of sampling; true/false"),
     ("eval_best", "the evaluation statistic that picks checkpoints/best (`apo eval --checkpoint best`): \"mean\", \"worst\" or \"cvar10\""),
-    ("render_every", "record a video of one evaluation episode every this many epochs, videos/epoch-<N>.gif, also in TensorBoard's Images tab (its own environment and seeds: training is unchanged; `apo render` for more); 0 = never"),
+    ("render_every", "record a video of one evaluation episode every this many epochs, videos/epoch-<N>.gif, also in TensorBoard's Images tab (its own environment and seeds: training is unchanged; `apo render` for more); 0 = never; 0..=1000000000"),
     ("pipeline", "overlap each epoch's value fit with the next epoch's rollout (bit-identical results; docs/architecture.md); true/false"),
     ("algo", "the algorithm's settings: one section, [algo.<name>], for the algorithm of the run"),
 ];
@@ -876,17 +877,92 @@ fn set_path(doc: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), 
 }
 
 /// A `--set` value: TOML syntax (`0.99`, `true`, `[64, 64]`, `"x"`), or a bare string.
-pub fn parse_value(text: &str) -> toml::Value {
-    format!("v = {text}")
+///
+/// # Errors
+/// A number TOML cannot hold (`99999999999999999999`, `1e400`), which would otherwise become
+/// a string: the message gives the ranges.
+pub fn parse_value(text: &str) -> Result<toml::Value, String> {
+    let parsed = format!("v = {text}")
         .parse::<toml::Table>()
         .ok()
-        .and_then(|mut t| t.remove("v"))
-        .unwrap_or_else(|| toml::Value::String(text.to_string()))
+        .and_then(|mut t| t.remove("v"));
+    // a digit-spelled float that overflowed to ±inf is out of range too (`inf` is spelled so)
+    let overflowed = matches!(parsed, Some(toml::Value::Float(f)) if !f.is_finite());
+    if let Some(value) = parsed.filter(|_| !(overflowed && looks_numeric(text))) {
+        return Ok(value);
+    }
+    if looks_numeric(text) {
+        return Err(format!(
+            "`{text}` is a number out of range: integers are from {} to {}, floats finite (at most about 1.8e308)",
+            i64::MIN,
+            i64::MAX
+        ));
+    }
+    Ok(toml::Value::String(text.to_string()))
+}
+
+/// Whether `text` is written as a number: a sign, digits (with `_`), a fraction, an exponent.
+fn looks_numeric(text: &str) -> bool {
+    let body = text.trim_start_matches(['+', '-']);
+    let (mantissa, exponent) = match body.split_once(['e', 'E']) {
+        Some((m, e)) => (m, Some(e.trim_start_matches(['+', '-']))),
+        None => (body, None),
+    };
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit() || b == b'_');
+    let mantissa_ok = match mantissa.split_once('.') {
+        Some((whole, fraction)) => {
+            (digits(whole) || whole.is_empty())
+                && (digits(fraction) || fraction.is_empty())
+                && !(whole.is_empty() && fraction.is_empty())
+        }
+        None => digits(mantissa),
+    };
+    mantissa_ok && exponent.is_none_or(digits)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_number_toml_cannot_hold_is_an_error_naming_the_ranges_not_a_string() {
+        for text in [
+            "99999999999999999999",
+            "-99999999999999999999",
+            "1e400",
+            "-1.5e999",
+        ] {
+            let err = parse_value(text).expect_err(text);
+            assert!(
+                err.contains(text)
+                    && err.contains("out of range")
+                    && err.contains("9223372036854775807"),
+                "{err}"
+            );
+        }
+        assert_eq!(parse_value("42"), Ok(toml::Value::Integer(42)));
+        assert_eq!(parse_value("1e3"), Ok(toml::Value::Float(1000.0)));
+        for word in ["Walker2d-v4", "e5", "1.2.3", "nope", "-"] {
+            assert_eq!(
+                parse_value(word),
+                Ok(toml::Value::String(word.into())),
+                "{word}"
+            );
+        }
+        let err = RunConfig::build_with_preset(
+            Algorithm::Apo,
+            "CartPole-v1",
+            None,
+            None,
+            &["steps_per_epoch=99999999999999999999".to_string()],
+        )
+        .expect_err("out of range")
+        .to_string();
+        assert!(
+            err.contains("steps_per_epoch") && err.contains("out of range"),
+            "{err}"
+        );
+    }
 
     fn common(c: &RunConfig) -> apo_core::algorithm::Common {
         c.train.algo.common()

@@ -163,14 +163,7 @@ pub fn recompute_rows(rows: &mut [ProgressRow], dir: &Path, k: f64) -> anyhow::R
         return Ok(0);
     }
     let episodes = read_lenient(&path)?;
-    if !episodes.left_out.is_empty() {
-        eprintln!(
-            "warning: {}: {} record(s) left out: {}",
-            path.display(),
-            episodes.left_out.len(),
-            episodes.left_out[..episodes.left_out.len().min(5)].join("; ")
-        );
-    }
+    crate::progress::warn(&path, "record(s) left out", &episodes.left_out);
     let mut by_epoch: BTreeMap<(usize, Phase), Vec<apo_train::Episode>> = BTreeMap::new();
     for r in &episodes.records {
         by_epoch

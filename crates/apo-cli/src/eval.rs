@@ -105,6 +105,20 @@ impl LoadedRun {
     pub fn load(run_dir: &Path, which: &Which) -> anyhow::Result<LoadedRun> {
         let config = RunConfig::load(&run_dir.join("config.toml"))
             .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
+        if crate::run_dir::check_resumable(run_dir).is_err() {
+            anyhow::bail!(
+                "{} holds a config.toml but no run (neither apo's marker nor a checkpoint): train one with \
+                 `apo train --config {} --out <new folder>`",
+                run_dir.display(),
+                run_dir.join("config.toml").display()
+            );
+        }
+        let from = checkpoint::locate(run_dir, which)?.with_context(|| {
+            format!(
+                "{} has no checkpoint yet: the run has not completed an epoch",
+                run_dir.display()
+            )
+        })?;
         // the run's action mapping, but episodes seeded by the evaluation's own seeds
         let options = apo_envs::MakeOptions {
             fixed_reset_seed: None,
@@ -126,12 +140,6 @@ impl LoadedRun {
             &device,
             0,
         )?;
-        let from = checkpoint::locate(run_dir, which)?.with_context(|| {
-            format!(
-                "{} has no checkpoint yet: the run has not completed an epoch",
-                run_dir.display()
-            )
-        })?;
         let state = checkpoint::load(
             &from,
             &mut learner,

@@ -71,14 +71,30 @@ pub fn read_text(path: &Path, what: &str, max_bytes: u64) -> anyhow::Result<Stri
         .map_err(|_| anyhow::anyhow!("{what} {} is not UTF-8 text", path.display()))
 }
 
-/// Checks, before any work, that a file can be written at `path`: its folder exists and is a
-/// folder, and `path` is not a folder. `flag` names the option in the error (`--out`).
+/// Checks, before any work, that a file can be written at `path` by apo's output rule: its
+/// folder exists and is a folder, `path` is not a folder, and an existing file there is
+/// replaced only with `replace` (the user's `--force`), never when it is not a regular file
+/// (a FIFO, a device). `flag` names the option in the error (`--out`).
 ///
 /// # Errors
 /// Naming the flag and the path.
-pub fn check_output_file(path: &Path, flag: &str) -> anyhow::Result<()> {
+pub fn check_output_file(path: &Path, flag: &str, replace: bool) -> anyhow::Result<()> {
     if path.is_dir() {
         bail!("{flag} {} is a directory; give a file name", path.display());
+    }
+    if let Ok(meta) = std::fs::metadata(path) {
+        if !meta.is_file() {
+            bail!(
+                "{flag} {} exists and is not a regular file (a pipe, device or socket); apo writes only files",
+                path.display()
+            );
+        }
+        if !replace {
+            bail!(
+                "{flag} {} exists; apo replaces an existing file only with --force",
+                path.display()
+            );
+        }
     }
     let parent = crate::atomic::parent(path);
     match std::fs::metadata(parent) {
@@ -203,19 +219,32 @@ mod tests {
     #[test]
     fn output_paths_are_checked_with_the_flag_and_path() {
         let tmp = tempfile::tempdir().expect("tempdir");
-        let err = check_output_file(&tmp.path().join("nodir/x.png"), "--out")
+        let err = check_output_file(&tmp.path().join("nodir/x.png"), "--out", true)
             .unwrap_err()
             .to_string();
         assert!(
             err.contains("--out") && err.contains("nodir") && err.contains("does not exist"),
             "{err}"
         );
-        check_output_file(&tmp.path().join("x.png"), "--out").expect("writable");
+        check_output_file(&tmp.path().join("x.png"), "--out", false).expect("writable");
         assert_eq!(
             std::fs::read_dir(tmp.path()).expect("ls").count(),
             0,
             "no probe left"
         );
+        // an existing file: only with replace
+        let existing = tmp.path().join("x.png");
+        std::fs::write(&existing, "mine").expect("write");
+        let err = check_output_file(&existing, "--out", false)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("exists") && err.contains("--force"), "{err}");
+        check_output_file(&existing, "--out", true).expect("replace");
+        let err = check_output_file(Path::new("/dev/null"), "--out", true)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("not a regular file"), "{err}");
+        std::fs::remove_file(&existing).expect("rm");
         let file = tmp.path().join("f");
         std::fs::write(&file, "").expect("write");
         let err = prepare_output_dir(&file, "--out").unwrap_err().to_string();

@@ -747,7 +747,7 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
     if runs.is_empty() {
         bail!("no run directory given");
     }
-    let format = ImageFormat::of(out)?;
+    ImageFormat::of(out)?;
     let runs = runs
         .iter()
         .map(|dir| Run::load(dir, options.smooth, options.column.as_deref()))
@@ -760,16 +760,50 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
             if run.skipped == 1 { "" } else { "s" }
         );
     }
-    draw(&Figure::new(&runs, options, false)?, out, format)
+    draw(&Figure::new(&runs, options, false)?, out)
 }
 
-fn draw(figure: &Figure<'_>, out: &Path, format: ImageFormat) -> anyhow::Result<()> {
+fn draw(figure: &Figure<'_>, out: &Path) -> anyhow::Result<()> {
+    render_image(out, SIZE, &|a| figure.draw(a), &|a| figure.draw(a))
+}
+
+/// Draws a figure of `size` pixels into `out`, PNG or SVG by its extension: in memory, then
+/// written atomically (a failed or interrupted draw leaves `out` as it was). `svg` and
+/// `bitmap` draw the same figure on either backend.
+///
+/// # Errors
+/// Another extension, a drawing error, a failed write (naming `out`).
+pub(crate) fn render_image(
+    out: &Path,
+    size: (u32, u32),
+    svg: &dyn Fn(DrawingArea<SVGBackend<'_>, Shift>) -> anyhow::Result<()>,
+    bitmap: &dyn Fn(DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
     load_font()?;
-    match format {
-        ImageFormat::Png => figure.draw(BitMapBackend::new(out, SIZE).into_drawing_area()),
-        ImageFormat::Svg => figure.draw(SVGBackend::new(out, SIZE).into_drawing_area()),
-    }
-    .with_context(|| format!("cannot draw {}", out.display()))
+    let bytes = match ImageFormat::of(out)? {
+        ImageFormat::Svg => {
+            let mut text = String::new();
+            svg(SVGBackend::with_string(&mut text, size).into_drawing_area())
+                .with_context(|| format!("cannot draw {}", out.display()))?;
+            text.into_bytes()
+        }
+        ImageFormat::Png => {
+            let (w, h) = (size.0 as usize, size.1 as usize);
+            let mut rgb = vec![0u8; w * h * 3];
+            bitmap(BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area())
+                .with_context(|| format!("cannot draw {}", out.display()))?;
+            let mut png_bytes = Vec::new();
+            let mut encoder = png::Encoder::new(&mut png_bytes, size.0, size.1);
+            encoder.set_color(png::ColorType::Rgb);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder
+                .write_header()
+                .and_then(|mut w| w.write_image_data(&rgb))
+                .with_context(|| format!("cannot encode {}", out.display()))?;
+            png_bytes
+        }
+    };
+    crate::atomic::write(out, &bytes).with_context(|| format!("cannot write {}", out.display()))
 }
 
 /// Plots groups of runs into `out` (`.png` or `.svg`), one curve set per group `(label,
@@ -783,12 +817,12 @@ pub fn plot_seed_groups(
     if options.smooth == 0 {
         bail!("--smooth must be at least 1 (1 = no smoothing), got 0");
     }
-    let format = ImageFormat::of(out)?;
+    ImageFormat::of(out)?;
     let runs = groups
         .iter()
         .map(|(label, dirs)| Run::seeds(label, dirs, options.smooth))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    draw(&Figure::new(&runs, options, true)?, out, format)
+    draw(&Figure::new(&runs, options, true)?, out)
 }
 
 #[cfg(test)]

@@ -5,7 +5,8 @@
 //! finished runs (`summary`, `report`, `plot`, `sweep`) use [`read_rows`]: a row that does not
 //! parse, repeats or goes back on an epoch, or holds a non-finite return statistic is left out
 //! and counted, and a warning names the file and the rows, so that one bad cell never turns
-//! into a NaN in a table, a doubled epoch or a silently failed run.
+//! into a NaN in a table, a doubled epoch or a silently failed run; a gap in the epochs
+//! (1, 2, 7) is named too, and a run's epoch count is its last epoch, not its row count.
 
 use std::path::Path;
 
@@ -18,6 +19,22 @@ pub struct Progress {
     pub rows: Vec<ProgressRow>,
     /// One line per row left out: `line <n>: <reason>`.
     pub left_out: Vec<String>,
+    /// The epochs with no row kept, as inclusive ranges `(first, last)`: the gaps of the
+    /// record (before its first row too), named in the warning and never read over.
+    pub missing: Vec<(usize, usize)>,
+}
+
+/// The inclusive ranges of epochs from 1 that `epochs` (strictly increasing) skips.
+pub fn gaps(epochs: impl IntoIterator<Item = usize>) -> Vec<(usize, usize)> {
+    let mut missing = Vec::new();
+    let mut next = 1;
+    for epoch in epochs {
+        if epoch > next {
+            missing.push((next, epoch - 1));
+        }
+        next = epoch.saturating_add(1);
+    }
+    missing
 }
 
 fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
@@ -100,6 +117,7 @@ pub fn read_lenient(path: &Path, keep_non_finite: bool) -> anyhow::Result<Progre
             progress.rows.push(row);
         }
     }
+    progress.missing = gaps(progress.rows.iter().map(|r| r.epoch));
     if progress.rows.is_empty() {
         if let Some(e) = first_error {
             anyhow::bail!(
@@ -129,22 +147,45 @@ pub fn read_rows_with_non_finite(path: &Path) -> anyhow::Result<Vec<ProgressRow>
 }
 
 fn warn_left_out(path: &Path, progress: Progress) -> anyhow::Result<Vec<ProgressRow>> {
-    if !progress.left_out.is_empty() {
-        const SHOWN: usize = 5;
-        let more = progress.left_out.len().saturating_sub(SHOWN);
-        eprintln!(
-            "warning: {}: {} row(s) left out: {}{}",
-            path.display(),
-            progress.left_out.len(),
-            progress.left_out[..progress.left_out.len().min(SHOWN)].join("; "),
-            if more > 0 {
-                format!("; and {more} more")
+    warn(path, "row(s) left out", &progress.left_out);
+    let missing: Vec<String> = progress
+        .missing
+        .iter()
+        .map(|&(a, b)| {
+            if a == b {
+                format!("{a}")
             } else {
-                String::new()
+                format!("{a}–{b}")
             }
-        );
-    }
+        })
+        .collect();
+    warn(
+        path,
+        "epoch range(s) missing (a gap in the record)",
+        &missing,
+    );
     Ok(progress.rows)
+}
+
+/// Warns on stderr, once per file, about the records of `path` that a lenient reader left
+/// out: how many (`what`) and the first few, one per `lines`.
+pub(crate) fn warn(path: &Path, what: &str, lines: &[String]) {
+    if lines.is_empty() {
+        return;
+    }
+    const SHOWN: usize = 5;
+    let more = lines.len().saturating_sub(SHOWN);
+    eprintln!(
+        "warning: {}: {} {what}: {}{}",
+        path.display(),
+        lines.len(),
+        lines[..lines.len().min(SHOWN)].join("; "),
+        if more > 0 {
+            format!("; and {more} more")
+        } else {
+            String::new()
+        }
+    );
 }
 
 /// Writes `rows` to `path` atomically (the whole file is rewritten each epoch).
@@ -161,4 +202,17 @@ pub fn write(path: &Path, rows: &[ProgressRow]) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("csv: {e}"))?;
     crate::atomic::write(path, &bytes)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaps_in_the_epochs_are_named_as_ranges() {
+        assert_eq!(gaps([1, 2, 7]), vec![(3, 6)]);
+        assert_eq!(gaps([2, 4, 5, 9]), vec![(1, 1), (3, 3), (6, 8)]);
+        assert!(gaps([1, 2, 3]).is_empty());
+        assert!(gaps(std::iter::empty()).is_empty());
+    }
 }

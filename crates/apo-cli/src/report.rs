@@ -256,6 +256,8 @@ pub fn report(
     let mut groups: BTreeMap<(String, String, String), (Algorithm, Vec<PathBuf>)> = BTreeMap::new();
     let mut options = BTreeMap::new();
     let mut targets = BTreeMap::new();
+    // a run's identity is what it learned with, not its path: a copy counts once
+    let mut identities: BTreeMap<BTreeMap<String, String>, PathBuf> = BTreeMap::new();
     for dir in runs {
         let config = RunConfig::load(&dir.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", dir.display()))?;
@@ -277,6 +279,17 @@ pub fn report(
             .file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         let variant = variant(&name, &config.train.env, algo);
+        let mut identity = config.learned_with();
+        identity.insert("\u{0}variant".into(), variant.clone());
+        if let Some(first) = identities.get(&identity) {
+            eprintln!(
+                "note: {} is the same run as {} (the same environment, algorithm, settings and seed); it counts once",
+                dir.display(),
+                first.display()
+            );
+            continue;
+        }
+        identities.insert(identity, dir.clone());
         groups
             .entry((config.train.env.clone(), algo.name().to_string(), variant))
             .or_insert_with(|| (algo, Vec::new()))

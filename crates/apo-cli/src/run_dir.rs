@@ -217,13 +217,13 @@ pub fn remove_run_files(
     if listed.contains(VIDEOS) {
         remove_videos(&dir.join(VIDEOS))?;
     }
-    let mut names: Vec<String> = Vec::new();
-    for name in listed.iter().filter(|n| released || n.as_str() != LOCK) {
-        names.push(name.clone());
-        names.push(crate::atomic::temp_name(name));
-    }
-    names.push(crate::atomic::temp_name(MARKER));
+    let mut names: Vec<String> = listed
+        .iter()
+        .filter(|n| released || n.as_str() != LOCK)
+        .cloned()
+        .collect();
     names.push(MARKER.to_string());
+    names.extend(crate::atomic::temps_of(dir, &names));
     let mut left = crate::removal::remove_created(dir, &names, remove_dir)?;
     left.retain(|n| n != LOCK);
     Ok(left)
@@ -414,8 +414,8 @@ pub fn remove_videos(root: &Path) -> anyhow::Result<()> {
     let mut names = Vec::new();
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
-        if is_video_name(&name) {
-            names.push(crate::atomic::temp_name(&name));
+        let video = crate::atomic::temp_target(&name).unwrap_or(&name);
+        if is_video_name(video) {
             names.push(name);
         }
     }

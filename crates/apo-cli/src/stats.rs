@@ -390,8 +390,10 @@ pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
             .iter()
             .position(|h| h.trim() == name)
             .ok_or_else(|| {
+                let found: Vec<&str> = headers.iter().collect();
                 anyhow::anyhow!(
-                    "the score file has no `{name}` column (header: algorithm,task,score)"
+                    "the score file has no `{name}` column: its header is `{}`; the columns needed are algorithm,task,score (in any order)",
+                    found.join(",")
                 )
             })
     };

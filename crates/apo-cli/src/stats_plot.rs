@@ -5,29 +5,12 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Context};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::plot::{color, font, load_font, GREY};
+use crate::plot::{color, font, render_image as render, GREY};
 use crate::stats::{Aggregate, Analysis};
-
-/// Draws `figure` into `out`, PNG or SVG by its extension, `size` pixels.
-fn render(
-    out: &Path,
-    size: (u32, u32),
-    figure: &dyn Fn(DrawingArea<SVGBackend<'_>, Shift>) -> anyhow::Result<()>,
-    bitmap: &dyn Fn(DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
-    load_font()?;
-    match out.extension().and_then(|e| e.to_str()) {
-        Some("svg") => figure(SVGBackend::new(out, size).into_drawing_area()),
-        Some("png") => bitmap(BitMapBackend::new(out, size).into_drawing_area()),
-        _ => bail!("{}: use a .png or .svg file name", out.display()),
-    }
-    .with_context(|| format!("cannot draw {}", out.display()))
-}
 
 /// The performance profiles of `analysis` into `out`; `title` names the metric and `x_label`
 /// the scores.

@@ -53,7 +53,8 @@ pub fn summarize_rows(rows: &[progress::ProgressRow], last: usize) -> RunSummary
     let time = rows.last().map_or(0.0, |r| r.time_s);
     let env_steps = rows.last().map_or(0, |r| r.env_steps);
     RunSummary {
-        epochs: rows.len(),
+        // the last epoch recorded: a gap (named when read) does not shorten the run
+        epochs: rows.last().map_or(0, |r| r.epoch),
         env_steps,
         mean_all: average_over_epochs(&means, None),
         mean_last: average_over_epochs(&means, Some(last)),

@@ -61,7 +61,8 @@ impl Axis {
         let key = key.trim().to_string();
         let mut seen: Vec<(toml::Value, &str)> = Vec::new();
         for v in &values {
-            let parsed = crate::config::parse_value(v);
+            let parsed = crate::config::parse_value(v)
+                .map_err(|message| anyhow::anyhow!("--grid {key}: {message}"))?;
             if let Some((_, first)) = seen.iter().find(|(p, _)| same_value(p, &parsed)) {
                 bail!("--grid {key}: the value `{v}` is given twice (as `{first}` and `{v}`)");
             }
@@ -784,16 +785,25 @@ pub struct CellResult {
     pub seeds: usize,
     /// Runs of the cell that have not finished (left out of the statistics).
     pub incomplete: usize,
-    /// Mean over seeds.
-    pub mean: f64,
-    /// Population standard deviation over seeds.
-    pub std: f64,
+    /// Finished runs trained to another number of epochs than the sweep's (an earlier sweep
+    /// with a larger `--epochs`): left out, never mixed with runs of the sweep's target.
+    pub other_target: usize,
+    /// Finished runs whose records cannot give the metric (`progress.csv` missing or
+    /// unreadable, no finite value): left out, each named in a warning.
+    pub unreadable: usize,
+    /// Mean over seeds (`None` without any).
+    pub mean: Option<f64>,
+    /// Population standard deviation over seeds (`None` without any).
+    pub std: Option<f64>,
 }
 
 /// Each cell's `metric` (over the last `last` epochs where it says so), mean ± std over the
-/// seeds whose run has finished its `epochs` and has episodes; unfinished runs are counted as
-/// incomplete and left out. Cells without any value are left out. Sorted by environment,
-/// algorithm, then best first.
+/// seeds whose run has finished exactly `epochs` epochs and has a finite value. The other runs
+/// are counted apart, never mixed in: unfinished ones (`incomplete`), ones trained to another
+/// epoch target (`other_target`) and finished ones whose records are missing or unreadable
+/// (`unreadable`, each named in a warning on stderr). Every cell of `runs` is listed, with or
+/// without a value. Sorted by environment, algorithm, then best first (cells without a value
+/// last).
 pub fn cell_results(
     out: &Path,
     runs: &[SweepRun],
@@ -801,61 +811,112 @@ pub fn cell_results(
     metric: Metric,
     last: usize,
 ) -> Vec<CellResult> {
-    let mut cells: BTreeMap<(String, String, String), (Vec<f64>, usize)> = BTreeMap::new();
+    let mut cells: BTreeMap<(String, String, String), CellResult> = BTreeMap::new();
+    let mut values: BTreeMap<(String, String, String), Vec<f64>> = BTreeMap::new();
     for run in runs {
         let dir = out.join(&run.name);
-        let entry = cells
-            .entry((
-                run.env.clone(),
-                run.algo.name().to_string(),
-                run.cell_label(),
-            ))
-            .or_default();
+        let key = (
+            run.env.clone(),
+            run.algo.name().to_string(),
+            run.cell_label(),
+        );
+        let cell = cells.entry(key.clone()).or_insert_with(|| CellResult {
+            env: run.env.clone(),
+            algo: run.algo,
+            cell: run.cell_label(),
+            seeds: 0,
+            incomplete: 0,
+            other_target: 0,
+            unreadable: 0,
+            mean: None,
+            std: None,
+        });
         if status(&dir, epochs).ok() != Some(RunStatus::Finished) {
-            entry.1 += 1;
+            cell.incomplete += 1;
             continue;
         }
-        let value = summarize(&dir, last)
-            .ok()
-            .and_then(|s| metric.of(&s))
-            .filter(|v| v.is_finite());
-        entry.0.extend(value);
+        let summary = match summarize(&dir, last) {
+            Ok(summary) => summary,
+            Err(e) => {
+                eprintln!(
+                    "warning: {}: finished, but its records cannot be read, so it is left out: {e:#}",
+                    dir.display()
+                );
+                cell.unreadable += 1;
+                continue;
+            }
+        };
+        if summary.epochs != epochs {
+            eprintln!(
+                "warning: {}: trained to {} epochs, not this sweep's {epochs}; left out (run the sweep with --epochs {} to count it)",
+                dir.display(),
+                summary.epochs,
+                summary.epochs
+            );
+            cell.other_target += 1;
+            continue;
+        }
+        match metric.of(&summary).filter(|v| v.is_finite()) {
+            Some(v) => values.entry(key).or_default().push(v),
+            None => {
+                eprintln!(
+                    "warning: {}: finished, but its records hold no finite value of the metric; left out",
+                    dir.display()
+                );
+                cell.unreadable += 1;
+            }
+        }
     }
     let mut results: Vec<CellResult> = cells
         .into_iter()
-        .filter(|(_, (values, _))| !values.is_empty())
-        .filter_map(|((env, algo, cell), (values, incomplete))| {
-            let (mean, std) = crate::summary::mean_std(&values);
-            Some(CellResult {
-                env,
-                algo: algo.parse().ok()?,
-                cell,
-                seeds: values.len(),
-                incomplete,
-                mean,
-                std,
-            })
+        .map(|(key, mut cell)| {
+            if let Some(values) = values.get(&key) {
+                let (mean, std) = crate::summary::mean_std(values);
+                cell.seeds = values.len();
+                cell.mean = Some(mean);
+                cell.std = Some(std);
+            }
+            cell
         })
         .collect();
     results.sort_by(|a, b| {
         (a.env.as_str(), a.algo.name())
             .cmp(&(b.env.as_str(), b.algo.name()))
-            .then(b.mean.total_cmp(&a.mean))
+            .then_with(|| match (a.mean, b.mean) {
+                (Some(x), Some(y)) => y.total_cmp(&x),
+                (Some(_), None) => std::cmp::Ordering::Less,
+                (None, Some(_)) => std::cmp::Ordering::Greater,
+                (None, None) => a.cell.cmp(&b.cell),
+            })
     });
     results
 }
 
-/// The cells as CSV: `env,algo,cell,seeds,incomplete,mean,std,best` (best: the first of its
-/// environment and algorithm).
+/// The cells as CSV: `env,algo,cell,seeds,incomplete,other_target,unreadable,mean,std,best`
+/// (mean and std empty for a cell without a value; best: the first of its environment and
+/// algorithm with a value).
 pub fn cells_csv(results: &[CellResult]) -> String {
-    let mut out = String::from("env,algo,cell,seeds,incomplete,mean,std,best\n");
+    let mut out =
+        String::from("env,algo,cell,seeds,incomplete,other_target,unreadable,mean,std,best\n");
     let mut previous: Option<(&str, Algorithm)> = None;
+    let number = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
     for r in results {
-        let best = previous != Some((r.env.as_str(), r.algo));
-        previous = Some((r.env.as_str(), r.algo));
+        let best = r.mean.is_some() && previous != Some((r.env.as_str(), r.algo));
+        if r.mean.is_some() {
+            previous = Some((r.env.as_str(), r.algo));
+        }
         out.push_str(&format!(
-            "{},{},\"{}\",{},{},{:.4},{:.4},{}\n",
-            r.env, r.algo, r.cell, r.seeds, r.incomplete, r.mean, r.std, best
+            "{},{},\"{}\",{},{},{},{},{},{},{}\n",
+            r.env,
+            r.algo,
+            r.cell,
+            r.seeds,
+            r.incomplete,
+            r.other_target,
+            r.unreadable,
+            number(r.mean),
+            number(r.std),
+            best
         ));
     }
     out

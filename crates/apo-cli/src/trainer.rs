@@ -62,6 +62,38 @@ impl Launch {
     }
 }
 
+/// The keys of a run's algorithm that scale its update (step sizes, radii, penalty weights,
+/// multipliers), by their last part.
+const UPDATE_SCALES: &[&str] = &[
+    "lr",
+    "max_kl",
+    "k",
+    "omega1",
+    "omega2",
+    "delta",
+    "eps_alpha",
+    "eps_eta",
+    "alpha_init",
+    "eta_init",
+    "clip",
+    "cg_damping",
+    "step_epsilon",
+];
+
+/// `key = value` of each of `config`'s settings that scale the update ([`UPDATE_SCALES`]): what
+/// a non-finite update names.
+fn update_scales(config: &RunConfig) -> Vec<String> {
+    config
+        .learned_with()
+        .into_iter()
+        .filter(|(key, _)| {
+            key.starts_with("algo.")
+                && UPDATE_SCALES.contains(&key.rsplit('.').next().unwrap_or(key))
+        })
+        .map(|(key, value)| format!("{key} = {value}"))
+        .collect()
+}
+
 /// Trains (or, with `launch.resume`, continues) the run in `run_dir` on backend `B`, as rank
 /// `comm.rank()` of `comm.size()` (every rank calls it with the same arguments; rank 0 alone
 /// writes the run's files, the others only read the checkpoint when resuming). A checkpoint
@@ -209,9 +241,10 @@ pub fn train<B: Backend>(
                     "No epoch had completed, so nothing was saved.".to_string()
                 };
                 bail!(
-                    "epoch {epoch}: the update produced {what}; the run stopped without saving that epoch. {kept} Lower \
-                     the learning rates (algo.policy_update.lr, algo.value_update.lr) or algo.trust_region.max_kl, or \
-                     check the environment's observations and rewards"
+                    "epoch {epoch}: the update produced {what}; the run stopped without saving that epoch. {kept} \
+                     The settings that scale the update, with this run's values: {}. Lower them, or check the \
+                     environment's observations and rewards",
+                    update_scales(config).join(", ")
                 );
             }
             Err(e) => return Err(e.into()),

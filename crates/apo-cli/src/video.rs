@@ -1,11 +1,13 @@
-//! Videos of rendered frames: GIF (the `gif` crate) or MP4 (the `ffmpeg` program, when the
-//! machine has it), chosen by the file's extension, written to a temporary file beside the
+//! Videos of rendered frames: GIF (the `gif` crate) or MP4 (the `ffmpeg` program, which an
+//! `.mp4` needs), chosen by the file's extension, written to a temporary file beside the
 //! target and renamed over it when complete; and the text overlay of `apo render`.
 
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use apo_core::inference::HostPolicy;
@@ -49,22 +51,254 @@ impl Format {
     }
 }
 
-/// Whether `ffmpeg` runs on this machine.
-pub fn ffmpeg_available() -> bool {
-    Command::new("ffmpeg")
+/// How long `ffmpeg` may take to accept a frame, or to finish once its input is closed, before
+/// apo stops it and reports it (a child that stops reading would otherwise hold `apo render`
+/// forever).
+pub const FFMPEG_TIMEOUT: Duration = Duration::from_secs(20);
+
+/// Frames handed to `ffmpeg`'s writer thread and not yet written: bounds the memory held.
+const FRAMES_IN_FLIGHT: usize = 8;
+
+/// The last bytes of `ffmpeg`'s stderr kept for an error message.
+const STDERR_KEPT: usize = 4096;
+
+/// Checks that `ffmpeg` runs on this machine (`ffmpeg -version` exits with 0).
+///
+/// # Errors
+/// `ffmpeg` is not on the PATH (with how to install it, and that a `.gif` needs nothing), it
+/// cannot be started (the OS's error), or it exits with a failure (its status and stderr).
+pub fn check_ffmpeg() -> anyhow::Result<()> {
+    let output = match Command::new("ffmpeg")
         .arg("-version")
+        .stdin(Stdio::null())
         .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
+        .stderr(Stdio::piped())
+        .output()
+    {
+        Ok(output) => output,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!(
+            "an .mp4 needs ffmpeg, which is not on the PATH (Debian: apt-get install ffmpeg); \
+             or name a .gif, which needs nothing"
+        ),
+        Err(e) => return Err(e).context("cannot start ffmpeg"),
+    };
+    if !output.status.success() {
+        bail!(
+            "`ffmpeg -version` failed ({}): {}",
+            output.status,
+            tail(&output.stderr)
+        );
+    }
+    Ok(())
+}
+
+/// The last [`STDERR_KEPT`] bytes of a child's stderr, as text.
+fn tail(stderr: &[u8]) -> String {
+    let start = stderr.len().saturating_sub(STDERR_KEPT);
+    let text = String::from_utf8_lossy(&stderr[start..]).trim().to_string();
+    if text.is_empty() {
+        "(nothing on stderr)".to_string()
+    } else {
+        text
+    }
+}
+
+/// An `ffmpeg` encoding frames written to its stdin by a thread of ours, so that a child that
+/// stops reading is noticed ([`FFMPEG_TIMEOUT`]) instead of blocking apo; its stderr is read by
+/// another thread (the last [`STDERR_KEPT`] bytes are kept for the error). Neither thread is
+/// ever joined: a pipe held open by a grandchild of a stopped `ffmpeg` cannot hold apo.
+struct Ffmpeg {
+    child: Child,
+    /// `None` once the input is closed.
+    frames: Option<mpsc::Sender<Arc<Vec<u8>>>>,
+    /// One result per frame written by the writer thread.
+    written: mpsc::Receiver<std::io::Result<()>>,
+    in_flight: usize,
+    /// The end of ffmpeg's stderr so far, and whether it has ended.
+    stderr: Arc<(Mutex<Vec<u8>>, AtomicBool)>,
+    /// Whether the child has been waited for.
+    reaped: bool,
+}
+
+impl Ffmpeg {
+    fn spawn(tmp: &Path, width: u32, height: u32, fps: u32) -> anyhow::Result<Ffmpeg> {
+        check_ffmpeg()?;
+        let mut child = Command::new("ffmpeg")
+            .args(["-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo"])
+            .args(["-pix_fmt", "rgb24", "-s", &format!("{width}x{height}")])
+            .args(["-r", &fps.to_string(), "-i", "-"])
+            // H.264 in 4:2:0 needs even sides: pad by one pixel where odd
+            .args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264"])
+            .args([
+                "-pix_fmt",
+                "yuv420p",
+                "-movflags",
+                "+faststart",
+                "-f",
+                "mp4",
+            ])
+            .arg(tmp)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .context("cannot start ffmpeg")?;
+        let (Some(mut stdin), Some(mut err)) = (child.stdin.take(), child.stderr.take()) else {
+            let _ = child.kill();
+            let _ = child.wait();
+            bail!("ffmpeg started without its pipes");
+        };
+        let (frames, inbox) = mpsc::channel::<Arc<Vec<u8>>>();
+        let (done, written) = mpsc::channel();
+        std::thread::spawn(move || {
+            for frame in inbox {
+                let result = stdin.write_all(&frame);
+                let failed = result.is_err();
+                if done.send(result).is_err() || failed {
+                    break;
+                }
+            }
+            // dropping stdin closes ffmpeg's input
+        });
+        let stderr = Arc::new((Mutex::new(Vec::new()), AtomicBool::new(false)));
+        let kept = Arc::clone(&stderr);
+        std::thread::spawn(move || {
+            let mut chunk = [0u8; 4096];
+            while let Ok(n) = err.read(&mut chunk) {
+                if n == 0 {
+                    break;
+                }
+                if let Ok(mut kept) = kept.0.lock() {
+                    kept.extend_from_slice(&chunk[..n]);
+                    let excess = kept.len().saturating_sub(STDERR_KEPT);
+                    kept.drain(..excess);
+                }
+            }
+            kept.1.store(true, Ordering::Release);
+        });
+        Ok(Ffmpeg {
+            child,
+            frames: Some(frames),
+            written,
+            in_flight: 0,
+            stderr,
+            reaped: false,
+        })
+    }
+
+    /// Hands `frame` to the writer `repeat` times; waits while more than [`FRAMES_IN_FLIGHT`]
+    /// are unwritten.
+    fn push(&mut self, frame: &[u8], repeat: usize) -> anyhow::Result<()> {
+        let frame = Arc::new(frame.to_vec());
+        for _ in 0..repeat {
+            let sent = self
+                .frames
+                .as_ref()
+                .is_some_and(|f| f.send(Arc::clone(&frame)).is_ok());
+            if !sent {
+                return Err(self.stopped("ffmpeg stopped reading frames"));
+            }
+            self.in_flight += 1;
+            self.wait_written(FRAMES_IN_FLIGHT)?;
+        }
+        Ok(())
+    }
+
+    /// Waits until at most `limit` frames are unwritten.
+    fn wait_written(&mut self, limit: usize) -> anyhow::Result<()> {
+        while self.in_flight > limit {
+            match self.written.recv_timeout(FFMPEG_TIMEOUT) {
+                Ok(Ok(())) => self.in_flight -= 1,
+                Ok(Err(e)) => {
+                    return Err(self.stopped(&format!("ffmpeg stopped reading frames ({e})")))
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    return Err(self.stopped(&format!(
+                        "ffmpeg read no frame for {} s",
+                        FFMPEG_TIMEOUT.as_secs()
+                    )))
+                }
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    return Err(self.stopped("ffmpeg stopped reading frames"))
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The end of ffmpeg's stderr, once it has ended (waiting at most a second after the
+    /// child's exit for the last of it).
+    fn stderr_tail(&self) -> String {
+        let deadline = Instant::now() + Duration::from_secs(1);
+        while !self.stderr.1.load(Ordering::Acquire) && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        self.stderr
+            .0
+            .lock()
+            .map(|kept| tail(&kept))
+            .unwrap_or_default()
+    }
+
+    /// Stops ffmpeg; the error says `what` happened, how ffmpeg exited and what it wrote on
+    /// stderr.
+    fn stopped(&mut self, what: &str) -> anyhow::Error {
+        self.frames = None;
+        let _ = self.child.kill();
+        let status = self.child.wait();
+        self.reaped = true;
+        match status {
+            Ok(status) => {
+                anyhow::anyhow!("{what}; it was stopped ({status}): {}", self.stderr_tail())
+            }
+            Err(e) => anyhow::anyhow!("{what}; it was stopped: {e}"),
+        }
+    }
+
+    /// Waits for every frame to be written, closes the input and waits (at most
+    /// [`FFMPEG_TIMEOUT`]) for ffmpeg to finish the file.
+    fn finish(mut self) -> anyhow::Result<()> {
+        self.wait_written(0)?;
+        // the writer thread ends and drops ffmpeg's stdin: its input ends
+        self.frames = None;
+        let deadline = Instant::now() + FFMPEG_TIMEOUT;
+        let status = loop {
+            match self.child.try_wait() {
+                Ok(Some(status)) => break status,
+                Ok(None) if Instant::now() < deadline => {
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Ok(None) => {
+                    return Err(self.stopped(&format!(
+                        "ffmpeg did not finish the video within {} s of its last frame",
+                        FFMPEG_TIMEOUT.as_secs()
+                    )))
+                }
+                Err(e) => return Err(self.stopped(&format!("cannot wait for ffmpeg: {e}"))),
+            }
+        };
+        self.reaped = true;
+        if !status.success() {
+            bail!("ffmpeg failed ({status}): {}", self.stderr_tail());
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Ffmpeg {
+    /// Stops an unfinished ffmpeg (an error, a signal).
+    fn drop(&mut self) {
+        self.frames = None;
+        if !self.reaped {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
 }
 
 enum Sink {
     Gif(gif::Encoder<BufWriter<std::fs::File>>),
-    Mp4 {
-        ffmpeg: Child,
-        stdin: BufWriter<ChildStdin>,
-    },
+    Mp4(Ffmpeg),
 }
 
 /// A video being written: frames of one size, at a fixed rate.
@@ -83,81 +317,59 @@ pub struct VideoWriter {
 
 impl VideoWriter {
     /// Starts a video of `width × height` frames at `fps` frames per second at `path`, in the
-    /// format of its extension. An MP4 on a machine without `ffmpeg` becomes a GIF beside it
-    /// (`video.mp4` → `video.gif`), with a warning on stderr; [`VideoWriter::path`] says which.
+    /// format of its extension, written to a temporary file of a unique name beside it. An
+    /// existing file at `path` is replaced (when the video is finished) only with `replace`
+    /// (`--force`), by the output rule of [`crate::input::check_output_file`].
     ///
     /// # Errors
-    /// An unknown extension, a size a GIF cannot hold, an unwritable folder.
-    pub fn create(path: &Path, width: u32, height: u32, fps: u32) -> anyhow::Result<VideoWriter> {
-        let mut format = Format::of(path)?;
-        let mut path = path.to_path_buf();
-        if format == Format::Mp4 && !ffmpeg_available() {
-            path.set_extension("gif");
-            eprintln!(
-                "warning: ffmpeg is not installed (Debian: apt-get install ffmpeg), so the video is a GIF: {}",
-                path.display()
-            );
-            format = Format::Gif;
-        }
-        crate::input::check_output_file(&path, "--out")?;
+    /// An unknown extension, an existing file without `replace`, an MP4 without a working
+    /// `ffmpeg` ([`check_ffmpeg`]), a size a GIF cannot hold, an unwritable folder.
+    pub fn create(
+        path: &Path,
+        width: u32,
+        height: u32,
+        fps: u32,
+        replace: bool,
+    ) -> anyhow::Result<VideoWriter> {
+        let format = Format::of(path)?;
+        crate::input::check_output_file(path, "--out", replace)?;
         let name = path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let tmp = atomic::parent(&path).join(atomic::temp_name(&name));
         let fps = fps.clamp(1, 100);
-        let sink = match format {
-            Format::Gif => {
-                let (w, h) = (u16::try_from(width), u16::try_from(height));
-                let (Ok(w), Ok(h)) = (w, h) else {
-                    bail!("a GIF's sides are at most 65535 pixels, not {width}x{height}");
-                };
-                let file = std::fs::File::create(&tmp)
-                    .with_context(|| format!("cannot create {}", tmp.display()))?;
-                let mut encoder = gif::Encoder::new(BufWriter::new(file), w, h, &[])
-                    .with_context(|| format!("cannot write {}", tmp.display()))?;
-                encoder.set_repeat(gif::Repeat::Infinite)?;
-                Sink::Gif(encoder)
-            }
-            Format::Mp4 => {
-                let mut ffmpeg = Command::new("ffmpeg")
-                    .args(["-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo"])
-                    .args(["-pix_fmt", "rgb24", "-s", &format!("{width}x{height}")])
-                    .args(["-r", &fps.to_string(), "-i", "-"])
-                    // H.264 in 4:2:0 needs even sides: pad by one pixel where odd
-                    .args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264"])
-                    .args([
-                        "-pix_fmt",
-                        "yuv420p",
-                        "-movflags",
-                        "+faststart",
-                        "-f",
-                        "mp4",
-                    ])
-                    .arg(&tmp)
-                    .stdin(Stdio::piped())
-                    .stdout(Stdio::null())
-                    .stderr(Stdio::piped())
-                    .spawn()
-                    .context("cannot start ffmpeg")?;
-                let stdin = ffmpeg.stdin.take().context("ffmpeg has no input pipe")?;
-                Sink::Mp4 {
-                    ffmpeg,
-                    stdin: BufWriter::new(stdin),
-                }
-            }
+        let (w, h) = (u16::try_from(width), u16::try_from(height));
+        let (Ok(w), Ok(h)) = (w, h) else {
+            bail!("a video's sides are at most 65535 pixels, not {width}x{height}");
         };
-        Ok(VideoWriter {
-            sink: Some(sink),
-            path,
+        let (tmp, file) = atomic::create_temp(atomic::parent(path), &name).with_context(|| {
+            format!("cannot create a file in {}", atomic::parent(path).display())
+        })?;
+        // from here on, an error removes the temporary file (the writer's Drop)
+        let mut writer = VideoWriter {
+            sink: None,
+            path: path.to_path_buf(),
             tmp,
             size: (width, height),
             fps,
             frames: 0,
-        })
+        };
+        writer.sink = Some(match format {
+            Format::Gif => {
+                let mut encoder = gif::Encoder::new(BufWriter::new(file), w, h, &[])
+                    .with_context(|| format!("cannot write {}", writer.tmp.display()))?;
+                encoder.set_repeat(gif::Repeat::Infinite)?;
+                Sink::Gif(encoder)
+            }
+            Format::Mp4 => {
+                drop(file);
+                Sink::Mp4(Ffmpeg::spawn(&writer.tmp, width, height, fps)?)
+            }
+        });
+        Ok(writer)
     }
 
-    /// The file the video goes to (the GIF when an MP4 fell back to it).
+    /// The file the video goes to.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -170,7 +382,8 @@ impl VideoWriter {
     /// Appends `frame`, shown `repeat` times (at least once).
     ///
     /// # Errors
-    /// A frame of another size than the video's, a failed write.
+    /// A frame of another size than the video's, a failed write, an `ffmpeg` that stopped
+    /// reading (within [`FFMPEG_TIMEOUT`]).
     pub fn push(&mut self, frame: &Frame, repeat: usize) -> anyhow::Result<()> {
         if (frame.width(), frame.height()) != self.size {
             bail!(
@@ -193,16 +406,14 @@ impl VideoWriter {
                     10,
                 );
                 // GIF delays are in hundredths of a second
-                gif_frame.delay = ((100 * repeat) as f64 / f64::from(self.fps)).round() as u16;
-                encoder.write_frame(&gif_frame)?;
+                gif_frame.delay = ((100 * repeat) as f64 / f64::from(self.fps))
+                    .round()
+                    .min(f64::from(u16::MAX)) as u16;
+                encoder
+                    .write_frame(&gif_frame)
+                    .with_context(|| format!("cannot write {}", self.tmp.display()))?;
             }
-            Some(Sink::Mp4 { stdin, .. }) => {
-                for _ in 0..repeat {
-                    stdin
-                        .write_all(frame.rgb())
-                        .context("ffmpeg stopped reading frames")?;
-                }
-            }
+            Some(Sink::Mp4(ffmpeg)) => ffmpeg.push(frame.rgb(), repeat)?,
         }
         self.frames += repeat;
         Ok(())
@@ -212,7 +423,8 @@ impl VideoWriter {
     /// path and the number of frames.
     ///
     /// # Errors
-    /// When no frame was written, the encoder failed, or the file cannot be synced or moved.
+    /// When no frame was written, the encoder failed (for `ffmpeg`: its exit status and
+    /// stderr), or the file cannot be synced or moved.
     pub fn finish(mut self) -> anyhow::Result<(PathBuf, usize)> {
         if self.frames == 0 {
             bail!("no frame to write to {}", self.path.display());
@@ -220,29 +432,20 @@ impl VideoWriter {
         match self.sink.take() {
             None => bail!("the video is finished"),
             Some(Sink::Gif(encoder)) => {
-                let writer = encoder.into_inner()?;
-                let file = writer.into_inner().map_err(|e| e.into_error())?;
-                file.sync_all()?;
+                let writer = encoder
+                    .into_inner()
+                    .with_context(|| format!("cannot write {}", self.tmp.display()))?;
+                let file = writer
+                    .into_inner()
+                    .map_err(|e| e.into_error())
+                    .with_context(|| format!("cannot write {}", self.tmp.display()))?;
+                file.sync_all()
+                    .with_context(|| format!("cannot write {}", self.tmp.display()))?;
             }
-            Some(Sink::Mp4 { mut ffmpeg, stdin }) => {
-                match stdin.into_inner() {
-                    // closing the pipe ends ffmpeg's input
-                    Ok(pipe) => drop(pipe),
-                    Err(e) => {
-                        let _ = ffmpeg.kill();
-                        let _ = ffmpeg.wait();
-                        return Err(e.into_error()).context("ffmpeg stopped reading frames");
-                    }
-                }
-                let output = ffmpeg.wait_with_output().context("ffmpeg did not finish")?;
-                if !output.status.success() {
-                    bail!(
-                        "ffmpeg failed ({}): {}",
-                        output.status,
-                        String::from_utf8_lossy(&output.stderr).trim()
-                    );
-                }
-                atomic::sync_file(&self.tmp)?;
+            Some(Sink::Mp4(ffmpeg)) => {
+                ffmpeg.finish()?;
+                atomic::sync_file(&self.tmp)
+                    .with_context(|| format!("cannot sync {}", self.tmp.display()))?;
             }
         }
         std::fs::rename(&self.tmp, &self.path)
@@ -255,11 +458,7 @@ impl VideoWriter {
 impl Drop for VideoWriter {
     /// Removes the temporary file of an unfinished (or failed) video; stops its ffmpeg.
     fn drop(&mut self) {
-        if let Some(Sink::Mp4 { mut ffmpeg, stdin }) = self.sink.take() {
-            drop(stdin);
-            let _ = ffmpeg.kill();
-            let _ = ffmpeg.wait();
-        }
+        drop(self.sink.take());
         let _ = std::fs::remove_file(&self.tmp);
     }
 }
@@ -312,12 +511,15 @@ pub struct RenderOptions {
     pub fps: u32,
     /// Keep one step in `every` (1: every step).
     pub every: usize,
+    /// Whether an existing file at the output is replaced (`--force`; apo's own videos in a
+    /// run's `videos/`).
+    pub replace: bool,
 }
 
 /// A recorded video.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rendered {
-    /// The video file (a GIF where an MP4 fell back to one).
+    /// The video file.
     pub path: PathBuf,
     /// Frames in the video.
     pub frames: usize,
@@ -377,7 +579,13 @@ pub fn render_policy(
     stop: &AtomicBool,
 ) -> anyhow::Result<(PathBuf, usize, EvalResult)> {
     let mut frame = Frame::new(options.width, options.height)?;
-    let mut writer = VideoWriter::create(out, options.width, options.height, options.fps)?;
+    let mut writer = VideoWriter::create(
+        out,
+        options.width,
+        options.height,
+        options.fps,
+        options.replace,
+    )?;
     let result = crate::eval::play_episodes(
         env,
         policy,
@@ -482,6 +690,8 @@ impl EpochVideos {
             height,
             fps: 30,
             every: 4,
+            // videos/epoch-<N>.gif is apo's: a resumed run plays the epoch again
+            replace: true,
         };
         let mut frame = Frame::new(width, height)?;
         let mut obs = vec![0.0; env.observation_space().flat_dim()];
@@ -578,6 +788,7 @@ mod tests {
             height: 24,
             fps: 10,
             every: 1,
+            replace: false,
         }
     }
 
@@ -615,14 +826,14 @@ mod tests {
     fn frames_of_another_size_and_empty_videos_are_refused() {
         let dir = tempfile::tempdir().expect("tempdir");
         let out = dir.path().join("v.gif");
-        let mut writer = VideoWriter::create(&out, 8, 6, 10).expect("writer");
+        let mut writer = VideoWriter::create(&out, 8, 6, 10, false).expect("writer");
         let wrong = Frame::new(6, 8).expect("frame");
         assert!(writer.push(&wrong, 1).is_err());
         assert!(writer.finish().is_err(), "a video without frames");
         assert!(!out.exists());
         assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 0);
         // a finished one: its frames, its size
-        let mut writer = VideoWriter::create(&out, 8, 6, 10).expect("writer");
+        let mut writer = VideoWriter::create(&out, 8, 6, 10, false).expect("writer");
         let frame = Frame::new(8, 6).expect("frame");
         writer.push(&frame, 1).expect("push");
         writer.push(&frame, 3).expect("push");

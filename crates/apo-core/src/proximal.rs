@@ -47,27 +47,33 @@ impl ProximalConfig {
     pub fn validate(&self, name: &str) -> Result<(), ConfigError> {
         let finite_pos = |x: f64| x.is_finite() && x > 0.0;
         check(
-            finite_pos(self.lr),
+            // an Adam step moves a parameter by at most lr: 1e8 steps of 1e30 stay finite in f32
+            finite_pos(self.lr) && self.lr <= 1e30,
             &format!("{name}.lr"),
             self.lr,
-            "must be > 0",
+            "must be in (0, 1e30]",
         )?;
         check(
-            self.iters > 0,
+            (1..=10_000).contains(&self.iters),
             &format!("{name}.iters"),
             self.iters,
-            "must be ≥ 1",
+            "must be in 1..=10000",
         )?;
         if let Some(t) = self.target_kl {
             check(
-                finite_pos(t),
+                finite_pos(t) && t <= 1000.0,
                 &format!("{name}.target_kl"),
                 t,
-                "must be > 0",
+                "must be in (0, 1000]",
             )?;
         }
         if let Some(m) = self.minibatch_size {
-            check(m > 0, &format!("{name}.minibatch_size"), m, "must be ≥ 1")?;
+            check(
+                (1..=100_000_000).contains(&m),
+                &format!("{name}.minibatch_size"),
+                m,
+                "must be in 1..=100000000",
+            )?;
         }
         Ok(())
     }
@@ -75,10 +81,10 @@ impl ProximalConfig {
     /// Documentation of the keys of an update named `name`.
     pub fn key_docs(name: &str) -> Vec<(String, &'static str)> {
         [
-            ("lr", "Adam learning rate (paper: 3e-4 policy, 1e-3 value); > 0"),
-            ("iters", "passes over the batch (paper: 80); ≥ 1"),
-            ("target_kl", "stop early once the approximate KL exceeds this (paper: 0.02 for policies; unused by the value update); > 0, optional"),
-            ("minibatch_size", "minibatch size; optional (unset: full batch)"),
+            ("lr", "Adam learning rate (paper: 3e-4 policy, 1e-3 value); (0, 1e30]"),
+            ("iters", "passes over the batch (paper: 80); 1..=10000"),
+            ("target_kl", "stop early once the approximate KL exceeds this (paper: 0.02 for policies; unused by the value update); (0, 1000], optional"),
+            ("minibatch_size", "minibatch size; 1..=100000000, optional (unset: full batch)"),
         ]
         .into_iter()
         .map(|(k, d)| (format!("{name}.{k}"), d))

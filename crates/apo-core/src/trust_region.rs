@@ -100,28 +100,28 @@ impl TrustRegionConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let finite_nonneg = crate::validate::finite_nonneg;
         check(
-            self.max_kl.is_finite() && self.max_kl > 0.0,
+            self.max_kl > 0.0 && self.max_kl <= 10.0,
             "trust_region.max_kl",
             self.max_kl,
-            "must be > 0",
+            "must be in (0, 10]",
         )?;
         check(
-            self.cg_iters > 0,
+            (1..=1000).contains(&self.cg_iters),
             "trust_region.cg_iters",
             self.cg_iters,
-            "must be ≥ 1",
+            "must be in 1..=1000",
         )?;
         check(
-            finite_nonneg(self.cg_damping),
+            finite_nonneg(self.cg_damping) && self.cg_damping <= 1e6,
             "trust_region.cg_damping",
             self.cg_damping,
-            "must be ≥ 0",
+            "must be in [0, 1e6]",
         )?;
         check(
-            finite_nonneg(self.cg_residual_tol),
+            finite_nonneg(self.cg_residual_tol) && self.cg_residual_tol <= 1.0,
             "trust_region.cg_residual_tol",
             self.cg_residual_tol,
-            "must be ≥ 0",
+            "must be in [0, 1]",
         )?;
         check(
             self.backtrack_coeff > 0.0 && self.backtrack_coeff < 1.0,
@@ -130,16 +130,16 @@ impl TrustRegionConfig {
             "must be in (0, 1)",
         )?;
         check(
-            self.backtrack_iters > 0,
+            (1..=1000).contains(&self.backtrack_iters),
             "trust_region.backtrack_iters",
             self.backtrack_iters,
-            "must be ≥ 1",
+            "must be in 1..=1000",
         )?;
         check(
-            finite_nonneg(self.step_epsilon),
+            finite_nonneg(self.step_epsilon) && self.step_epsilon <= 1.0,
             "trust_region.step_epsilon",
             self.step_epsilon,
-            "must be ≥ 0",
+            "must be in [0, 1]",
         )?;
         check(
             self.accept_ratio > 0.0 && self.accept_ratio <= 1.0,
@@ -153,18 +153,18 @@ impl TrustRegionConfig {
     pub fn key_docs() -> Vec<(String, &'static str)> {
         [
             ("trust_region", "the trust-region step"),
-            ("trust_region.max_kl", "KL radius δ (paper: 0.02); > 0"),
+            ("trust_region.max_kl", "KL radius δ (paper: 0.02); (0, 10]"),
             (
                 "trust_region.cg_iters",
-                "conjugate-gradient iterations; ≥ 1",
+                "conjugate-gradient iterations; 1..=1000",
             ),
             (
                 "trust_region.cg_damping",
-                "damping added to the Fisher matrix, (F + damping·I)x = g; ≥ 0",
+                "damping added to the Fisher matrix, (F + damping·I)x = g; [0, 1e6]",
             ),
             (
                 "trust_region.cg_residual_tol",
-                "CG stops when the squared residual falls below this; ≥ 0",
+                "CG stops when the squared residual falls below this; [0, 1]",
             ),
             (
                 "trust_region.backtrack_coeff",
@@ -172,11 +172,11 @@ impl TrustRegionConfig {
             ),
             (
                 "trust_region.backtrack_iters",
-                "backtracking tries (paper: 100); ≥ 1",
+                "backtracking tries (paper: 100); 1..=1000",
             ),
             (
                 "trust_region.step_epsilon",
-                "added to xᵀFx in the step length sqrt(2δ / (xᵀFx + ε)) (the paper's code: 1e-8); ≥ 0",
+                "added to xᵀFx in the step length sqrt(2δ / (xᵀFx + ε)) (the paper's code: 1e-8); [0, 1]",
             ),
             (
                 "trust_region.acceptance",

@@ -11,6 +11,9 @@ pub const MAX_NUM_ENVS: usize = 65_536;
 /// The most epochs a run may have (a billion: beyond any training budget, and far from the
 /// overflow of the step counters).
 pub const MAX_EPOCHS: usize = 1_000_000_000;
+/// The largest `max_episode_steps` (a truncation longer than any epoch's steps is no
+/// truncation).
+pub const MAX_EPISODE_STEPS: usize = 1_000_000_000;
 /// Upper bound of the number of hidden layers.
 pub const MAX_LAYERS: usize = 64;
 /// Upper bound of a hidden layer's width.
@@ -204,10 +207,22 @@ impl TrainConfig {
             "must be ≥ num_envs",
         )?;
         check(
-            self.checkpoint_every > 0,
+            (1..=MAX_EPOCHS).contains(&self.checkpoint_every),
             "checkpoint_every",
             self.checkpoint_every.to_string(),
-            "must be ≥ 1",
+            &format!("must be in 1..={MAX_EPOCHS}"),
+        )?;
+        check(
+            self.keep_checkpoint_every <= MAX_EPOCHS,
+            "keep_checkpoint_every",
+            self.keep_checkpoint_every.to_string(),
+            &format!("must be in 0..={MAX_EPOCHS}"),
+        )?;
+        check(
+            self.max_episode_steps <= MAX_EPISODE_STEPS,
+            "max_episode_steps",
+            self.max_episode_steps.to_string(),
+            &format!("must be in 0..={MAX_EPISODE_STEPS}"),
         )?;
         check(
             !self.hidden.is_empty() && !self.hidden.contains(&0),

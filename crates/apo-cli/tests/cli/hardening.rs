@@ -413,6 +413,8 @@ fn a_diverging_update_stops_the_run_with_an_error_and_keeps_the_last_good_checkp
         "{err}"
     );
     assert!(err.contains("last good checkpoint (epoch 1)"), "{err}");
+    // the settings that scale the update are named with their values
+    assert!(err.contains("algo.a2c.policy_update.lr = 1000"), "{err}");
     assert_eq!(timeless(&run).len(), 1);
     let state = std::fs::read_to_string(run.join("checkpoints/latest/state.json"))
         .expect("last good checkpoint");
@@ -443,8 +445,9 @@ fn sigterm_checkpoints_and_exits_143_with_the_resume_command() {
 fn a_second_interrupt_exits_at_once() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
-    // A2C never stops its policy update early: a million Adam passes keep the first epoch's
-    // update busy for far longer than this test, and the update does not look at the stop flag.
+    // A2C never stops its policy update early: 10 000 Adam passes over 2000 steps keep the
+    // first epoch's update busy for longer than this test, and the update does not look at
+    // the stop flag (the watchdog of `stops.rs` would end it 10 s after the first signal).
     let child = spawn(&[
         "train",
         "--algo",
@@ -454,12 +457,14 @@ fn a_second_interrupt_exits_at_once() {
         "--epochs",
         "1",
         "--steps-per-epoch",
-        "100",
+        "2000",
         "--quiet",
         "--out",
         path(&run),
         "--set",
-        "algo.policy_update.iters=1000000",
+        "algo.policy_update.iters=10000",
+        "--set",
+        "algo.value_update.iters=10000",
     ]);
     wait_for(&run.join("train.log"));
     std::thread::sleep(Duration::from_secs(3));
@@ -525,15 +530,16 @@ fn checkpoint_files_and_directories_are_synced_before_and_after_the_swap() {
         &format!("\"{checkpoints}/.tmp-1\", \"{checkpoints}/latest\""),
     );
     for file in [
-        "policy.mpk",
-        "value.mpk",
-        "policy_optim.mpk",
-        "value_optim.mpk",
-        "state.json",
-        ".manifest.json.tmp",
+        "policy.mpk>",
+        "value.mpk>",
+        "policy_optim.mpk>",
+        "value_optim.mpk>",
+        "state.json>",
+        // the manifest is written atomically: its temporary file (of a unique name) is synced
+        ".manifest.json.apo-",
     ] {
         assert!(
-            first("fsync", &format!("<{checkpoints}/.tmp-1/{file}>")) < swap,
+            first("fsync", &format!("<{checkpoints}/.tmp-1/{file}")) < swap,
             "{file} is synced before the swap"
         );
     }
@@ -548,6 +554,7 @@ fn checkpoint_files_and_directories_are_synced_before_and_after_the_swap() {
             .any(|l| l.contains(" fsync(") && l.contains(&parent)),
         "checkpoints/ is synced after the swap"
     );
-    let progress = format!("{}/.progress.csv.tmp", path(&run));
-    assert!(first("fsync", &format!("<{progress}>")) < first("rename", &format!("\"{progress}\"")));
+    // progress.csv's temporary file (`.progress.csv.apo-<pid>-<n>.tmp`) is synced before its rename
+    let progress = format!("{}/.progress.csv.apo-", path(&run));
+    assert!(first("fsync", &format!("<{progress}")) < first("rename", &format!("\"{progress}")));
 }

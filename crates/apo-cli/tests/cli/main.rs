@@ -7,12 +7,16 @@ use std::time::{Duration, Instant};
 use apo_cli::progress::{self, ProgressRow};
 
 mod bound_config;
+mod causes;
 mod hardening;
 mod lose_nothing;
+mod outputs;
 mod physics;
 mod plot;
+mod ranges;
 mod render;
 mod reporting;
+mod stops;
 mod sweep_report;
 mod theory;
 

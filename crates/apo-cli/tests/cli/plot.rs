@@ -131,7 +131,7 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
             row(5, 5000, 40.0, 30.0, 50.0),
         ],
     );
-    let out = apo_within_a_minute(&["plot", path(&odd), "--out", figure]);
+    let out = apo_within_a_minute(&["plot", path(&odd), "--out", figure, "--force"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(
@@ -156,7 +156,7 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
         "Hopper",
         &[row(1, 1000, 1e308, 1e308, 1e308)],
     );
-    let out = apo_within_a_minute(&["plot", path(&low), path(&high), "--out", figure]);
+    let out = apo_within_a_minute(&["plot", path(&low), path(&high), "--out", figure, "--force"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
@@ -180,7 +180,7 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
                 row(2, 2000, returns[1], returns[1], returns[1]),
             ],
         );
-        let out = apo_within_a_minute(&["plot", path(&dir), "--out", figure]);
+        let out = apo_within_a_minute(&["plot", path(&dir), "--out", figure, "--force"]);
         assert!(
             out.status.success(),
             "{name}: {}",
@@ -196,7 +196,7 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
         "CartPole-v1",
         &[row(1, 1000, f64::NAN, f64::NAN, f64::INFINITY)],
     );
-    let out = apo_within_a_minute(&["plot", path(&none), "--out", figure]);
+    let out = apo_within_a_minute(&["plot", path(&none), "--out", figure, "--force"]);
     assert!(!out.status.success());
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("no completed episode with a finite return")
@@ -228,7 +228,7 @@ fn plot_title_names_environments_and_algorithms() {
     ] {
         let mut args = vec!["plot"];
         args.extend(runs.iter().map(|r| path(r)));
-        args.extend(["--out", path(&figure)]);
+        args.extend(["--out", path(&figure), "--force"]);
         ok(&args);
         let texts = texts(&figure);
         assert!(

@@ -6,7 +6,7 @@ use std::path::Path;
 use super::{fails, ok, path, small, timeless, train};
 
 /// The frames and the size of a GIF.
-fn gif_frames(file: &Path) -> (usize, (u16, u16)) {
+pub fn gif_frames(file: &Path) -> (usize, (u16, u16)) {
     let mut options = gif::DecodeOptions::new();
     options.set_color_output(gif::ColorOutput::RGBA);
     let mut decoder = options
@@ -161,44 +161,6 @@ fn render_refuses_bad_input_by_name() {
 }
 
 #[test]
-fn an_mp4_needs_ffmpeg_and_falls_back_to_a_gif() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let run = tmp.path().join("run");
-    small(&run, &[]);
-    let mp4 = tmp.path().join("v.mp4");
-    let args = [
-        "render",
-        "--run",
-        path(&run),
-        "--episodes",
-        "1",
-        "--width",
-        "65",
-        "--height",
-        "49",
-        "--out",
-        path(&mp4),
-    ];
-    if apo_cli::video::ffmpeg_available() {
-        ok(&args);
-        let bytes = std::fs::read(&mp4).expect("the MP4");
-        assert_eq!(&bytes[4..8], b"ftyp", "an MP4 starts with its ftyp box");
-    }
-    // without ffmpeg on the PATH: a GIF beside it, and a warning that says so
-    let empty = tmp.path().join("empty-path");
-    std::fs::create_dir(&empty).expect("dir");
-    let out = apo_with("PATH", path(&empty), &args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("ffmpeg is not installed"), "{stderr}");
-    assert_eq!(gif_frames(&tmp.path().join("v.gif")).1, (65, 49));
-}
-
-#[test]
 fn videos_during_training_change_nothing_and_reach_tensorboard() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let (plain, filmed) = (tmp.path().join("plain"), tmp.path().join("filmed"));
@@ -232,7 +194,7 @@ fn videos_during_training_change_nothing_and_reach_tensorboard() {
 }
 
 /// `apo` with `args` and the environment variable `key=value`.
-fn apo_with(key: &str, value: &str, args: &[&str]) -> std::process::Output {
+pub fn apo_with(key: &str, value: &str, args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_apo"))
         .args(args)
         .env(key, value)

@@ -38,10 +38,10 @@ impl Settings for EspoConfig {
 
     fn validate(&self) -> Result<(), ConfigError> {
         check(
-            self.delta.is_finite() && self.delta > 0.0,
+            self.delta > 0.0 && self.delta <= 10.0,
             "delta",
             self.delta,
-            "must be > 0",
+            "must be in (0, 10]",
         )?;
         self.policy_update.validate("policy_update")
     }
@@ -61,7 +61,7 @@ impl Settings for EspoConfig {
         let mut docs = Common::key_docs();
         docs.push((
             "delta".to_string(),
-            "δ: stop before a step once mean(|ratio − 1|) exceeds it (paper: 0.25); > 0",
+            "δ: stop before a step once mean(|ratio − 1|) exceeds it (paper: 0.25); (0, 10]",
         ));
         docs.extend(policy_update_docs());
         docs

@@ -45,28 +45,28 @@ impl Settings for VmpoConfig {
     fn validate(&self) -> Result<(), ConfigError> {
         let positive = |x: f64| x.is_finite() && x > 0.0;
         check(
-            positive(self.eps_eta),
+            positive(self.eps_eta) && self.eps_eta <= 10.0,
             "eps_eta",
             self.eps_eta,
-            "must be > 0",
+            "must be in (0, 10]",
         )?;
         check(
-            positive(self.eps_alpha),
+            positive(self.eps_alpha) && self.eps_alpha <= 10.0,
             "eps_alpha",
             self.eps_alpha,
-            "must be > 0",
+            "must be in (0, 10]",
         )?;
         check(
-            self.eta_init.is_finite() && self.eta_init >= MIN_MULTIPLIER,
+            self.eta_init >= MIN_MULTIPLIER && self.eta_init <= 1e8,
             "eta_init",
             self.eta_init,
-            "must be ≥ 1e-8",
+            "must be in [1e-8, 1e8]",
         )?;
         check(
-            self.alpha_init.is_finite() && self.alpha_init >= MIN_MULTIPLIER,
+            self.alpha_init >= MIN_MULTIPLIER && self.alpha_init <= 1e8,
             "alpha_init",
             self.alpha_init,
-            "must be ≥ 1e-8",
+            "must be in [1e-8, 1e8]",
         )?;
         self.policy_update.validate("policy_update")
     }
@@ -92,19 +92,19 @@ impl Settings for VmpoConfig {
             [
                 (
                     "eps_eta",
-                    "ε_η, the temperature's constraint (paper: 0.008); > 0",
+                    "ε_η, the temperature's constraint (paper: 0.008); (0, 10]",
                 ),
                 (
                     "eps_alpha",
-                    "ε_α, the bound on the mean KL (paper: 0.05); > 0",
+                    "ε_α, the bound on the mean KL (paper: 0.05); (0, 10]",
                 ),
                 (
                     "eta_init",
-                    "the temperature η at the start (paper: 1.0); ≥ 1e-8",
+                    "the temperature η at the start (paper: 1.0); [1e-8, 1e8]",
                 ),
                 (
                     "alpha_init",
-                    "the multiplier α at the start (paper: 5.0); ≥ 1e-8",
+                    "the multiplier α at the start (paper: 5.0); [1e-8, 1e8]",
                 ),
             ]
             .map(|(k, d)| (k.to_string(), d)),

@@ -9,9 +9,10 @@ use apo_core::Algorithm;
 
 #[derive(clap::Args)]
 pub struct ConfigArgs {
-    /// Algorithm whose defaults to start from.
-    #[arg(long, value_parser = crate::parse_algo, default_value = "apo")]
-    algo: Algorithm,
+    /// Algorithm whose defaults to start from [default: apo; with --config: the file's
+    /// section [algo.<name>]].
+    #[arg(long, value_parser = crate::parse_algo)]
+    algo: Option<Algorithm>,
     /// Environment name.
     #[arg(long)]
     env: Option<String>,
@@ -25,7 +26,7 @@ pub struct ConfigArgs {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
     /// Print this run directory's config instead.
-    #[arg(long, conflicts_with_all = ["env", "config", "preset", "sets"])]
+    #[arg(long, conflicts_with_all = ["algo", "env", "config", "preset", "sets"])]
     run: Option<PathBuf>,
 }
 
@@ -35,8 +36,11 @@ pub fn run(args: ConfigArgs) -> anyhow::Result<()> {
             .with_context(|| format!("{} is not a run directory", run.display()))?,
         None => {
             let algo = match &args.config {
-                Some(path) => apo_cli::config::file_algorithm(path)?.unwrap_or(args.algo),
-                None => args.algo,
+                Some(path) => args
+                    .algo
+                    .or(apo_cli::config::file_algorithm(path)?)
+                    .unwrap_or(Algorithm::Apo),
+                None => args.algo.unwrap_or(Algorithm::Apo),
             };
             if let Some(env) = &args.env {
                 apo_envs::registry::spec(env)?;

@@ -10,6 +10,9 @@ pub struct PlotArgs {
     /// Output image, .png or .svg.
     #[arg(long)]
     out: PathBuf,
+    /// Replace --out if it exists.
+    #[arg(long)]
+    force: bool,
     /// Moving average over this many epochs (1: none).
     #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
     smooth: usize,
@@ -20,7 +23,7 @@ pub struct PlotArgs {
 }
 
 pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
-    apo_cli::input::check_output_file(&args.out, "--out")?;
+    apo_cli::input::check_output_file(&args.out, "--out", args.force)?;
     let runs = apo_cli::report::distinct_runs(&args.runs)?;
     apo_cli::plot::plot(
         &runs,

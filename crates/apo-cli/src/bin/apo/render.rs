@@ -30,10 +30,13 @@ pub struct RenderArgs {
     /// Seed of the episodes: the same seed plays the same episodes as `apo eval --seed`.
     #[arg(long, default_value_t = 12345)]
     seed: u64,
-    /// The video: `.gif`, or `.mp4` when ffmpeg is installed (else a GIF beside it).
-    /// Default: <run>/videos/render.gif.
+    /// The video: `.gif`, or `.mp4` (needs ffmpeg). Default: <run>/videos/render.gif (apo's
+    /// own file in the run, replaced by each render).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Replace the file named by --out if it exists.
+    #[arg(long)]
+    force: bool,
     /// Frame width in pixels.
     #[arg(long, default_value_t = 480, value_parser = clap::value_parser!(u32).range(16..=4096))]
     width: u32,
@@ -56,17 +59,18 @@ pub struct RenderArgs {
 /// signal's exit status.
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let signals = Signals::install()?;
-    let out = match &args.out {
-        Some(out) => out.clone(),
+    let (out, replace) = match &args.out {
+        Some(out) => (out.clone(), args.force),
         None => {
             let dir = args.run.join(VIDEOS);
-            if apo_cli::run_dir::is_run_dir(&args.run) {
+            // only in a run apo made (a folder with just a config.toml gets nothing written)
+            if apo_cli::run_dir::check_resumable(&args.run).is_ok() {
                 // made by apo, so listed in the run's marker (`--force` may remove it)
                 apo_cli::run_dir::claim_new(&args.run, &[VIDEOS])?;
                 std::fs::create_dir_all(&dir)
                     .with_context(|| format!("cannot create {}", dir.display()))?;
             }
-            dir.join("render.gif")
+            (dir.join("render.gif"), true)
         }
     };
     let options = RenderOptions {
@@ -78,6 +82,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         height: args.height,
         fps: args.fps,
         every: args.every as usize,
+        replace,
     };
     let rendered = match render_run(&args.run, &args.checkpoint, &options, &out, &signals.stop) {
         Ok(rendered) => rendered,

@@ -1,8 +1,15 @@
 //! SIGINT and SIGTERM: a training checkpoints and stops on the first and exits at once on the
-//! second; a sweep passes each one on to its running runs and waits for them.
+//! second, or when its epoch has not ended [`STOP_GRACE`] after the first; a sweep passes each
+//! one on to its running runs and waits for them.
 
-use std::sync::atomic::{AtomicBool, AtomicUsize};
+/// How long a training may take after the first SIGINT or SIGTERM to end its epoch and write
+/// its checkpoint; then it stops at once, keeping the last checkpoint on disk (what a second
+/// signal does).
+pub const STOP_GRACE: Duration = Duration::from_secs(10);
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 
@@ -37,6 +44,48 @@ impl Signals {
                 .context("installing the signal handlers")?;
         }
         Ok(Self { stop, which })
+    }
+}
+
+impl Signals {
+    /// Starts a watchdog over the work that follows: when it has not ended `grace` after the
+    /// first signal (an epoch's update, an evaluation or a checkpoint can outlast the stop
+    /// checks of the rollout), it prints `message()` and exits at once with 128 + the
+    /// signal's number, as a second signal would. Dropping the returned [`Deadline`] ends it.
+    pub fn deadline(&self, grace: Duration, message: Box<dyn Fn() -> String + Send>) -> Deadline {
+        let done = Arc::new(AtomicBool::new(false));
+        let (stop, which, ended) = (
+            Arc::clone(&self.stop),
+            Arc::clone(&self.which),
+            Arc::clone(&done),
+        );
+        std::thread::spawn(move || {
+            let mut since: Option<Instant> = None;
+            while !ended.load(Ordering::SeqCst) {
+                if stop.load(Ordering::SeqCst) {
+                    let first = *since.get_or_insert_with(Instant::now);
+                    if first.elapsed() >= grace && !ended.load(Ordering::SeqCst) {
+                        eprintln!("{}", message());
+                        std::process::exit(i32::from(interrupted_status(
+                            which.load(Ordering::SeqCst),
+                        )));
+                    }
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        });
+        Deadline { done }
+    }
+}
+
+/// The watchdog of [`Signals::deadline`], ended when dropped.
+pub struct Deadline {
+    done: Arc<AtomicBool>,
+}
+
+impl Drop for Deadline {
+    fn drop(&mut self) {
+        self.done.store(true, Ordering::SeqCst);
     }
 }
 

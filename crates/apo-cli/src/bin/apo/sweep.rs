@@ -146,21 +146,35 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
     let mut previous: Option<(&str, Algorithm)> = None;
     let width = crate::algorithm_name_width();
     for r in &results {
-        let best = previous != Some((r.env.as_str(), r.algo));
-        previous = Some((r.env.as_str(), r.algo));
-        let incomplete = if r.incomplete > 0 {
-            format!(", {} incomplete left out", r.incomplete)
-        } else {
+        let best = r.mean.is_some() && previous != Some((r.env.as_str(), r.algo));
+        if r.mean.is_some() {
+            previous = Some((r.env.as_str(), r.algo));
+        }
+        let mut apart = Vec::new();
+        for (n, what) in [
+            (r.incomplete, "incomplete"),
+            (r.other_target, "of another epoch target"),
+            (r.unreadable, "without readable records"),
+        ] {
+            if n > 0 {
+                apart.push(format!("{n} {what}"));
+            }
+        }
+        let apart = if apart.is_empty() {
             String::new()
+        } else {
+            format!(", left out: {}", apart.join(", "))
+        };
+        let value = match (r.mean, r.std) {
+            (Some(mean), Some(std)) => format!("{mean:>10.2} ± {std:<8.2}"),
+            _ => format!("{:>10} ± {:<8}", "-", "-"),
         };
         println!(
-            "{} {:<12} {:<width$} {:<40} {:>10.2} ± {:<8.2} ({} seeds{incomplete})",
+            "{} {:<12} {:<width$} {:<40} {value} ({} seeds{apart})",
             if best { "*" } else { " " },
             r.env,
             r.algo.name(),
             r.cell,
-            r.mean,
-            r.std,
             r.seeds
         );
     }

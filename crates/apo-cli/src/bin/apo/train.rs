@@ -14,7 +14,7 @@ use apo_core::Algorithm;
 use apo_envs::mujoco::Physics;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::signals::{interrupted_status, Signals};
+use crate::signals::{interrupted_status, Signals, STOP_GRACE};
 
 #[derive(clap::Args)]
 pub struct TrainArgs {
@@ -134,7 +134,7 @@ fn warn_overridden(flags: &[(&str, &str, String)], sets: &[String], file: Option
             }
         }
         if let (Some(table), Some(path)) = (&file_table, file) {
-            if let Some(v) = table.get(*key).filter(|v| **v != flagged) {
+            if let Some(v) = table.get(*key).filter(|v| Ok(*v) != flagged.as_ref()) {
                 eprintln!(
                     "warning: {flag} {value} overrides {key} = {v} of --config {}",
                     path.display()
@@ -307,6 +307,26 @@ fn run_training(
     // the run's log is rank 0's; the other ranks log to stderr only
     init_logging((comm.rank() == 0).then_some(run_dir))?;
     let signals = Signals::install()?;
+    let dir = run_dir.to_path_buf();
+    let _deadline = signals.deadline(
+        STOP_GRACE,
+        Box::new(move || {
+            let kept = match apo_cli::checkpoint::latest_epoch(&dir) {
+                Ok(Some(epoch)) if epoch > 0 => format!(
+                    "the run keeps its checkpoint of epoch {epoch}; continue it with `apo train --resume {}`",
+                    dir.display()
+                ),
+                _ => format!(
+                    "no epoch had completed, so there is nothing to resume; start again with `--force --out {}`",
+                    dir.display()
+                ),
+            };
+            format!(
+                "apo: the epoch did not end within {} s of the signal, so the run stopped now; {kept}",
+                STOP_GRACE.as_secs()
+            )
+        }),
+    );
     let mut bar = Bar::new(quiet, config);
     let launch = trainer::Launch {
         resume,

@@ -1,0 +1,148 @@
+//! Rule: errors name the real cause — the child's exit status and stderr, a folder that holds
+//! a config but no run, the file's actual header — and clashing flags are refused the same
+//! way by every subcommand (clap's conflict error, exit status 2).
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use super::{apo, fails, path, small};
+
+/// A folder holding an executable `ffmpeg` shell script with `body`.
+fn fake_ffmpeg(dir: &Path, body: &str) -> String {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::create_dir_all(dir).expect("mkdir");
+    let script = dir.join("ffmpeg");
+    std::fs::write(&script, format!("#!/bin/sh\n{body}\n")).expect("write");
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    // the script's own tools stay reachable
+    format!("{}:/usr/bin:/bin", dir.display())
+}
+
+#[test]
+fn ffmpeg_failures_are_reported_with_exit_status_and_stderr_and_a_stalled_one_is_stopped() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let mp4 = tmp.path().join("v.mp4");
+    let args = [
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--out",
+        path(&mp4),
+    ];
+    let render = |path_var: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_apo"))
+            .args(args)
+            .env("PATH", path_var)
+            .output()
+            .expect("apo runs");
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    // an ffmpeg that is there but broken is not "not installed"
+    let broken = fake_ffmpeg(
+        &tmp.path().join("broken"),
+        "echo 'libavcodec.so.59: cannot open' >&2; exit 127",
+    );
+    let err = render(&broken);
+    assert!(
+        err.contains("ffmpeg -version") && err.contains("127") && err.contains("libavcodec"),
+        "{err}"
+    );
+    assert!(!err.contains("not on the PATH"), "{err}");
+    // one that fails while encoding: its exit status and its words
+    let failing = fake_ffmpeg(
+        &tmp.path().join("failing"),
+        "[ \"$1\" = -version ] && exit 0\necho \"Unknown encoder 'libx264'\" >&2\nexit 3",
+    );
+    let err = render(&failing);
+    assert!(
+        err.contains("exit status: 3") && err.contains("Unknown encoder"),
+        "{err}"
+    );
+    // one that stops reading (its shell waits on a child that holds the pipes) is stopped
+    let stalled = fake_ffmpeg(
+        &tmp.path().join("stalled"),
+        "[ \"$1\" = -version ] && exit 0\nsleep 60\nexit 0",
+    );
+    let start = Instant::now();
+    let err = render(&stalled);
+    assert!(err.contains("ffmpeg read no frame for 20 s"), "{err}");
+    assert!(
+        start.elapsed() < Duration::from_secs(50),
+        "{:?}",
+        start.elapsed()
+    );
+    let left: Vec<_> = std::fs::read_dir(tmp.path())
+        .expect("ls")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("v.mp4"))
+        .collect();
+    assert!(left.is_empty(), "no video and no temporary file: {left:?}");
+}
+
+#[test]
+fn a_folder_with_a_config_but_no_run_is_named_so_by_eval_render_and_resume() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let folder = tmp.path().join("only-config");
+    std::fs::create_dir(&folder).expect("mkdir");
+    let config = super::ok(&["config", "--algo", "ppo", "--env", "CartPole-v1"]);
+    std::fs::write(folder.join("config.toml"), config).expect("write");
+    for args in [
+        vec!["eval", "--run", path(&folder)],
+        vec!["render", "--run", path(&folder)],
+        vec!["train", "--resume", path(&folder)],
+    ] {
+        let err = fails(&args);
+        assert!(
+            err.contains("config.toml but no run") || err.contains("is not a run directory of apo"),
+            "{args:?}: {err}"
+        );
+        assert!(err.contains("apo train --config"), "{args:?}: {err}");
+    }
+    let left: Vec<_> = std::fs::read_dir(&folder)
+        .expect("ls")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        left,
+        ["config.toml"],
+        "nothing written into the user's folder"
+    );
+}
+
+#[test]
+fn a_score_file_with_another_header_is_shown_its_own_header() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let scores = tmp.path().join("scores.csv");
+    std::fs::write(&scores, "algo,env,value\napo,Hopper,1.0\n").expect("write");
+    let err = fails(&["stats", path(&scores)]);
+    assert!(
+        err.contains("its header is `algo,env,value`") && err.contains("algorithm,task,score"),
+        "{err}"
+    );
+}
+
+#[test]
+fn clashing_flags_are_refused_alike_by_every_subcommand() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    for args in [
+        vec!["config", "--run", path(&run), "--algo", "ppo"],
+        vec!["config", "--run", path(&run), "--env", "Hopper"],
+        vec!["train", "--resume", path(&run), "--algo", "ppo"],
+        vec!["train", "--resume", path(&run), "--env", "Hopper"],
+    ] {
+        let out = apo(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("cannot be used with"), "{args:?}: {err}");
+    }
+}

@@ -1,0 +1,167 @@
+//! Rule: one output rule. apo writes only the paths the user names; a named file that exists
+//! is replaced only with `--force`, in every subcommand that writes one (`render`, `plot`);
+//! no fallback name, and temporary files of unique names that never land on a file that
+//! exists.
+
+use std::path::Path;
+
+use super::render::{apo_with, gif_frames};
+use super::{fails, ok, path, small};
+
+/// Every entry of `dir`, sorted.
+fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("read_dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn a_named_file_that_exists_is_replaced_only_with_force_in_every_subcommand() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let out = tmp.path().join("out");
+    std::fs::create_dir(&out).expect("mkdir");
+    // a user's file of the old fixed temporary name stays untouched by every write
+    for name in [".v.gif.tmp", ".c.png.tmp", ".c.svg.tmp"] {
+        std::fs::write(out.join(name), "user's").expect("write");
+    }
+    let commands: [(&str, Vec<&str>); 3] = [
+        (
+            "v.gif",
+            vec![
+                "render",
+                "--run",
+                path(&run),
+                "--episodes",
+                "1",
+                "--width",
+                "32",
+                "--height",
+                "24",
+            ],
+        ),
+        ("c.png", vec!["plot", path(&run)]),
+        ("c.svg", vec!["plot", path(&run)]),
+    ];
+    for (name, args) in &commands {
+        let target = out.join(name);
+        std::fs::write(&target, "the user's own file").expect("write");
+        let mut named: Vec<&str> = args.clone();
+        named.extend(["--out", path(&target)]);
+        let err = fails(&named);
+        assert!(
+            err.contains("exists") && err.contains("--force") && err.contains(path(&target)),
+            "{name}: {err}"
+        );
+        assert_eq!(
+            std::fs::read(&target).expect("kept"),
+            b"the user's own file"
+        );
+        named.push("--force");
+        ok(&named);
+        let bytes = std::fs::read(&target).expect("replaced");
+        assert_ne!(bytes, b"the user's own file", "{name}");
+        // and a second time, the file apo made is not replaced without --force either
+        named.pop();
+        fails(&named);
+    }
+    assert_eq!(gif_frames(&out.join("v.gif")).1, (32, 24));
+    for name in [".v.gif.tmp", ".c.png.tmp", ".c.svg.tmp"] {
+        assert_eq!(
+            std::fs::read(out.join(name)).expect("kept"),
+            b"user's",
+            "{name}"
+        );
+    }
+    assert_eq!(
+        entries(&out),
+        [
+            ".c.png.tmp",
+            ".c.svg.tmp",
+            ".v.gif.tmp",
+            "c.png",
+            "c.svg",
+            "v.gif"
+        ],
+        "no temporary file left"
+    );
+    // a FIFO or a device is never an output, --force or not
+    let err = fails(&["plot", path(&run), "--out", "/dev/null", "--force"]);
+    assert!(err.contains("not a regular file"), "{err}");
+    // the default video is apo's own, in the run: each render replaces it
+    ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "32",
+        "--height",
+        "24",
+    ]);
+    ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "40",
+        "--height",
+        "24",
+    ]);
+    assert_eq!(gif_frames(&run.join("videos/render.gif")).1, (40, 24));
+}
+
+#[test]
+fn an_mp4_without_ffmpeg_is_an_error_and_writes_no_other_file() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let out = tmp.path().join("out");
+    std::fs::create_dir(&out).expect("mkdir");
+    // the file a fallback would have written over
+    std::fs::write(out.join("v.gif"), "precious").expect("write");
+    let mp4 = out.join("v.mp4");
+    let args = [
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "65",
+        "--height",
+        "49",
+        "--out",
+        path(&mp4),
+    ];
+    let empty = tmp.path().join("empty-path");
+    std::fs::create_dir(&empty).expect("dir");
+    let output = apo_with("PATH", path(&empty), &args);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("ffmpeg") && stderr.contains("not on the PATH") && stderr.contains(".gif"),
+        "{stderr}"
+    );
+    assert_eq!(entries(&out), ["v.gif"], "nothing written");
+    assert_eq!(std::fs::read(out.join("v.gif")).expect("kept"), b"precious");
+    if apo_cli::video::check_ffmpeg().is_ok() {
+        // with ffmpeg: an MP4 (odd sides padded), and the rule for an existing file
+        ok(&args);
+        let bytes = std::fs::read(&mp4).expect("the MP4");
+        assert_eq!(&bytes[4..8], b"ftyp", "an MP4 starts with its ftyp box");
+        let err = fails(&args);
+        assert!(err.contains("--force"), "{err}");
+        let mut forced = args.to_vec();
+        forced.push("--force");
+        ok(&forced);
+        assert_eq!(entries(&out), ["v.gif", "v.mp4"]);
+    }
+}
