@@ -607,11 +607,25 @@ pub struct MetricStatistics {
 /// documentation). An environment enters only where every group has runs with a value and
 /// the normalization is defined; the others are listed in [`MetricStatistics::left_out`].
 pub fn statistics(report: &Report, options: &StatsOptions) -> Vec<MetricStatistics> {
+    statistics_with_progress(report, options, &mut |_, _| {})
+}
+
+/// [`statistics`], calling `progress(done, total)` as the bootstrap advances (in units of
+/// [`stats::analysis_work`], over every metric).
+pub fn statistics_with_progress(
+    report: &Report,
+    options: &StatsOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Vec<MetricStatistics> {
     let mut labels: Vec<String> = report.groups.iter().map(GroupReport::label).collect();
     labels.sort();
     labels.dedup();
     let mut envs: Vec<&str> = report.groups.iter().map(|g| g.env.as_str()).collect();
     envs.dedup();
+    // every metric compares the same labels: the same work each
+    let per_metric = stats::analysis_work(labels.len(), &options.bootstrap);
+    let total = per_metric.saturating_mul(RunMetric::ALL.len() as u64);
+    let mut done = 0u64;
     RunMetric::ALL
         .iter()
         .map(|&metric| {
@@ -639,8 +653,15 @@ pub fn statistics(report: &Report, options: &StatsOptions) -> Vec<MetricStatisti
                         .collect(),
                 };
                 let taus = stats::default_taus(&comparison);
-                stats::analyze(&comparison, &options.bootstrap, &taus)
+                stats::analyze_with_progress(&comparison, &options.bootstrap, &taus, &mut |n| {
+                    done = done.saturating_add(n);
+                    progress(done, total);
+                })
             });
+            if analysis.is_none() {
+                done = done.saturating_add(per_metric);
+                progress(done, total);
+            }
             MetricStatistics {
                 metric,
                 normalization: options.normalization,

@@ -471,13 +471,39 @@ pub fn default_taus(comparison: &Comparison) -> Vec<f64> {
 /// Aggregates with intervals, the probability of improvement of every ordered pair and the
 /// performance profiles at `taus` of the algorithms of `comparison`.
 pub fn analyze(comparison: &Comparison, bootstrap: &StratifiedBootstrap, taus: &[f64]) -> Analysis {
+    analyze_with_progress(comparison, bootstrap, taus, &mut |_| {})
+}
+
+/// The bootstrap resamples [`analyze`] draws for a comparison of `algorithms` algorithms: its
+/// work, in the units of [`analyze_with_progress`]'s progress (for bars and estimates).
+pub fn analysis_work(algorithms: usize, bootstrap: &StratifiedBootstrap) -> u64 {
+    let algorithms = algorithms as u64;
+    let estimates = algorithms
+        .saturating_mul(Aggregate::ALL.len() as u64 + 1)
+        .saturating_add(algorithms.saturating_mul(algorithms.saturating_sub(1)));
+    estimates.saturating_mul(bootstrap.reps as u64)
+}
+
+/// [`analyze`], calling `progress(resamples)` after each estimate with the resamples it drew
+/// (they add up to [`analysis_work`]).
+pub fn analyze_with_progress(
+    comparison: &Comparison,
+    bootstrap: &StratifiedBootstrap,
+    taus: &[f64],
+    progress: &mut dyn FnMut(u64),
+) -> Analysis {
+    let reps = bootstrap.reps as u64;
     let aggregates = comparison
         .algorithms
         .iter()
         .map(|(label, scores)| {
             let estimates = Aggregate::ALL
                 .iter()
-                .map(|&a| (a.name(), bootstrap.estimate(scores, |s| a.of(s))))
+                .map(|&a| {
+                    let estimate = bootstrap.estimate(scores, |s| a.of(s));
+                    progress(reps);
+                    (a.name(), estimate)
+                })
                 .collect();
             (label.clone(), estimates)
         })
@@ -491,6 +517,7 @@ pub fn analyze(comparison: &Comparison, bootstrap: &StratifiedBootstrap, taus: &
                     y: y.clone(),
                     estimate: bootstrap.improvement(sx, sy),
                 });
+                progress(reps);
             }
         }
     }
@@ -499,6 +526,7 @@ pub fn analyze(comparison: &Comparison, bootstrap: &StratifiedBootstrap, taus: &
         .iter()
         .map(|(label, scores)| {
             let estimates = bootstrap.profile(scores, taus);
+            progress(reps);
             let profile = Profile {
                 fraction: estimates.iter().map(|e| e.point).collect(),
                 lower: estimates.iter().map(|e| e.lower).collect(),

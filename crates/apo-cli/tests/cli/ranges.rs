@@ -147,3 +147,82 @@ fn ranges_are_read_from_the_documentation() {
     );
     assert_eq!(range("a switch; true/false"), None);
 }
+
+/// Runs `apo args`; kills it and fails after 30 s (a count without a bound would run on).
+fn apo_bounded(args: &[&str]) -> std::process::Output {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn apo");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while child.try_wait().expect("poll").is_none() {
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("apo {args:?} still running after 30 s: the value has no bound");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().expect("output")
+}
+
+#[test]
+fn every_count_flag_refuses_the_largest_integer_and_one_past_it_naming_the_flag() {
+    let flags: &[(&[&str], &str)] = &[
+        (&["train"], "--epochs"),
+        (&["train"], "--steps-per-epoch"),
+        (&["train"], "--num-envs"),
+        (&["train"], "--threads"),
+        (&["eval"], "--episodes"),
+        (&["render"], "--episodes"),
+        (&["render"], "--width"),
+        (&["render"], "--height"),
+        (&["render"], "--fps"),
+        (&["render"], "--every"),
+        (&["plot"], "--smooth"),
+        (&["report"], "--last"),
+        (&["report"], "--random-episodes"),
+        (&["report"], "--smooth"),
+        (&["report"], "--reps"),
+        (&["stats"], "--reps"),
+        (&["sweep"], "--epochs"),
+        (&["sweep"], "--steps-per-epoch"),
+        (&["sweep"], "--jobs"),
+        (&["sweep"], "--threads"),
+        (&["sweep"], "--last"),
+        (&["summary"], "--last"),
+        (&["theory"], "--states"),
+        (&["theory"], "--actions"),
+        (&["theory"], "--seeds"),
+        (&["theory"], "--draws"),
+        (&["theory"], "--iterations"),
+        (&["theory"], "--ascent-steps"),
+        (&["theory"], "--episodes"),
+        (&["theory"], "--practical-iterations"),
+        (&["bench", "update"], "--batch"),
+        (&["bench", "update"], "--repeats"),
+        (&["bench", "epoch"], "--epochs"),
+        (&["bench", "env"], "--steps"),
+        (&["bench", "env"], "--num-envs"),
+        (&["bench", "policy"], "--calls"),
+        (&["bench", "policy"], "--batch"),
+    ];
+    for (command, flag) in flags {
+        for value in ["18446744073709551615", "18446744073709551616", "-1"] {
+            let mut args: Vec<&str> = command.to_vec();
+            let given = format!("{flag}={value}");
+            args.push(&given);
+            let out = apo_bounded(&args);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(!out.status.success(), "{args:?} was accepted");
+            assert!(!err.contains("panicked"), "{args:?}: {err}");
+            assert!(
+                err.contains(flag),
+                "{args:?}: the error does not name {flag}: {err}"
+            );
+        }
+    }
+}

@@ -19,16 +19,16 @@ pub enum BenchCommand {
         /// Where the trust-region updates' Fisher-vector products run.
         #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
         kernels: KernelsKind,
-        /// Samples in the batch.
+        /// Samples in the batch; 1..=10000000.
         #[arg(long, default_value_t = 30_000, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
         batch: u64,
-        /// Observation dimension.
+        /// Observation dimension; 1..=100000.
         #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..=100_000))]
         obs: u64,
-        /// Action dimension.
+        /// Action dimension; 1..=10000.
         #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u64).range(1..=10_000))]
         act: u64,
-        /// Timed repeats (after one warm-up); the median is printed.
+        /// Timed repeats (after one warm-up); the median is printed; 1..=1000.
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]
         repeats: u64,
     },
@@ -44,7 +44,7 @@ pub enum BenchCommand {
         /// Environment steps per epoch.
         #[arg(long, default_value_t = 4000)]
         steps_per_epoch: usize,
-        /// Epochs (the first includes the set-up and is left out of the medians).
+        /// Epochs (the first includes the set-up and is left out of the medians); 2..=1000.
         #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(2..=1000))]
         epochs: u64,
         /// Environments stepped together.
@@ -56,7 +56,7 @@ pub enum BenchCommand {
         /// Where the Fisher-vector products, the proximal policy steps and the value fit run.
         #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
         kernels: KernelsKind,
-        /// Threads that step the environments (0: the cores available).
+        /// Threads that step the environments (0: the cores available); 0..=1024.
         #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
         threads: usize,
         /// The sequential epoch: no overlap of the value fit with the next rollout.
@@ -68,13 +68,13 @@ pub enum BenchCommand {
         /// Environment name.
         #[arg(long)]
         env: String,
-        /// Steps to time (environment steps, summed over the vector).
-        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
+        /// Steps to time (environment steps, summed over the vector); 1..=1000000000.
+        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..=1_000_000_000))]
         steps: u64,
-        /// Environments stepped together as a vector (1: one bare environment).
+        /// Environments stepped together as a vector (1: one bare environment); 1..=65536.
         #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=65_536))]
         num_envs: usize,
-        /// Threads that step the vector (0: the cores available).
+        /// Threads that step the vector (0: the cores available); 0..=1024.
         #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
         threads: usize,
         /// Physics of MuJoCo environments: mujoco2, or mujoco3 (builds with the `mujoco3` feature).
@@ -83,17 +83,17 @@ pub enum BenchCommand {
     },
     /// Microseconds per rollout policy call (host MLP, (64, 64)).
     Policy {
-        /// Observation dimension.
+        /// Observation dimension; 1..=100000.
         #[arg(long, default_value_t = 11, value_parser = clap::value_parser!(u64).range(1..=100_000))]
         obs: u64,
-        /// Action dimension.
+        /// Action dimension; 1..=10000.
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=10_000))]
         act: u64,
-        /// Observations per call (environments stepped together).
+        /// Observations per call (environments stepped together); 1..=1000000.
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
         batch: u64,
-        /// Calls to time.
-        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
+        /// Calls to time; 1..=1000000000.
+        #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..=1_000_000_000))]
         calls: u64,
     },
 }

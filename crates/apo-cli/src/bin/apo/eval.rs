@@ -10,7 +10,7 @@ pub struct EvalArgs {
     /// The run directory.
     #[arg(long)]
     run: PathBuf,
-    /// Number of episodes.
+    /// Number of episodes; 1..=1000000.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     episodes: u64,
     /// Act with the mean (Gaussian) or most likely (categorical) action.

@@ -102,6 +102,28 @@ fn algorithm_name_width() -> usize {
 }
 
 /// `--physics`: a MuJoCo physics by name (`mujoco2`, `mujoco3`).
+/// Bootstrap resamples (in `stats::analysis_work`'s units) from which a computation shows a
+/// progress bar: about a second of work or more.
+const BAR_FROM_RESAMPLES: u64 = 200_000;
+
+/// A progress bar with the elapsed time and an estimate of the time left, on stderr, for
+/// `total` units of work named `what`: only on a terminal and for work of at least
+/// [`BAR_FROM_RESAMPLES`].
+fn work_bar(total: u64, what: &str) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    (total >= BAR_FROM_RESAMPLES && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(total);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{msg} {bar:40} {percent:>3}%  {elapsed_precise} (about {eta} left)",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar.set_message(what.to_string());
+        bar
+    })
+}
+
 fn parse_physics(name: &str) -> Result<Physics, String> {
     name.parse()
         .map_err(|e: apo_envs::mujoco::MujocoError| e.to_string())

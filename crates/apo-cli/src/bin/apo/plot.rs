@@ -13,7 +13,7 @@ pub struct PlotArgs {
     /// Replace --out if it exists.
     #[arg(long)]
     force: bool,
-    /// Moving average over this many epochs (1: none).
+    /// Moving average over this many epochs (1: none); 1..=100000.
     #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
     smooth: usize,
     /// Plot this numeric progress.csv column instead of the returns (e.g. kl,

@@ -21,7 +21,7 @@ pub struct RenderArgs {
     /// epoch kept by keep_checkpoint_every.
     #[arg(long, default_value = "latest")]
     checkpoint: Which,
-    /// Number of episodes.
+    /// Number of episodes; 1..=1000.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=1000))]
     episodes: u64,
     /// Act with the mean (Gaussian) or most likely (categorical) action.
@@ -37,20 +37,20 @@ pub struct RenderArgs {
     /// Replace the file named by --out if it exists.
     #[arg(long)]
     force: bool,
-    /// Frame width in pixels.
+    /// Frame width in pixels; 16..=4096.
     #[arg(long, default_value_t = 480, value_parser = clap::value_parser!(u32).range(16..=4096))]
     width: u32,
-    /// Frame height in pixels.
+    /// Frame height in pixels; 16..=4096.
     #[arg(long, default_value_t = 360, value_parser = clap::value_parser!(u32).range(16..=4096))]
     height: u32,
     /// The camera: `track` (follows the robot), `free` (MuJoCo's default view) or the name of
     /// a camera of the model.
     #[arg(long, default_value = "track")]
     camera: Camera,
-    /// Frames per second of the video.
+    /// Frames per second of the video; 1..=100.
     #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=100))]
     fps: u32,
-    /// Keep one step in N (shorter videos of long episodes).
+    /// Keep one step in N (shorter videos of long episodes); 1..=10000.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=10_000))]
     every: u64,
 }

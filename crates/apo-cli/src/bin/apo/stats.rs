@@ -10,7 +10,7 @@ use apo_cli::stats;
 pub struct StatsArgs {
     /// CSV with the columns `algorithm,task,score`, one row per run (e.g. normalized scores).
     scores: PathBuf,
-    /// Bootstrap resamples of each interval.
+    /// Bootstrap resamples of each interval; 1..=10000000.
     #[arg(long, default_value_t = 2000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000_000))]
     reps: usize,
     /// Seed of the bootstrap (the same seed gives the same intervals).
@@ -60,7 +60,18 @@ pub fn run(args: &StatsArgs) -> anyhow::Result<()> {
         level: 0.95,
         seed: args.ci_seed,
     };
-    let analysis = stats::analyze(&comparison, &bootstrap, &taus);
+    let bar = crate::work_bar(
+        stats::analysis_work(comparison.algorithms.len(), &bootstrap),
+        "bootstrap",
+    );
+    let analysis = stats::analyze_with_progress(&comparison, &bootstrap, &taus, &mut |n| {
+        if let Some(bar) = &bar {
+            bar.inc(n);
+        }
+    });
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&analysis)?);
     } else {

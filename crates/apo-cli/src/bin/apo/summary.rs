@@ -7,7 +7,7 @@ pub struct SummaryArgs {
     /// Run directories.
     #[arg(required = true)]
     runs: Vec<PathBuf>,
-    /// N of "the last N epochs" (paper: 20 continuous, 100 Atari).
+    /// N of "the last N epochs" (paper: 20 continuous, 100 Atari); 1..=1000000000.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=1_000_000_000))]
     last: u64,
     /// CSV instead of an aligned table.

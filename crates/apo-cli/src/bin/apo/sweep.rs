@@ -32,10 +32,10 @@ pub struct SweepArgs {
     /// The sweep's directory (runs are <env>-<algo>[-<key>=<value>…]-s<seed> inside it).
     #[arg(long)]
     out: PathBuf,
-    /// Epochs of every run.
+    /// Epochs of every run; 1..=1000000000.
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=apo_train::config::MAX_EPOCHS as u64))]
     epochs: u64,
-    /// Environment steps per epoch of every run [default: the config's].
+    /// Environment steps per epoch of every run [default: the config's]; 1..=100000000.
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
     /// Preset of every run.
@@ -48,16 +48,16 @@ pub struct SweepArgs {
     /// Override a config key in every run (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
-    /// Runs at once.
+    /// Runs at once; 1..=256.
     #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=256))]
     jobs: usize,
-    /// Threads of each run (0: the cores available divided by --jobs).
+    /// Threads of each run (0: the cores available divided by --jobs); 0..=1024.
     #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
     threads: usize,
     /// Metric that ranks the cells.
     #[arg(long, value_enum, default_value_t = sweep::Metric::WorstLast)]
     metric: sweep::Metric,
-    /// N of "the last N epochs".
+    /// N of "the last N epochs"; 1..=1000000000.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=1_000_000_000))]
     last: u64,
     /// The most runs the sweep may have (counted before anything starts).

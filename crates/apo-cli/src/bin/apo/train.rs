@@ -41,17 +41,17 @@ pub struct TrainArgs {
     /// Seed [config: seed; default 0; 0..=9223372036854775807].
     #[arg(long, value_parser = clap::value_parser!(u64).range(0..=i64::MAX as u64))]
     seed: Option<u64>,
-    /// Number of epochs [config: epochs; default 200]; with --resume, the run's new target.
+    /// Number of epochs [config: epochs; default 200]; with --resume, the run's new target; 1..=1000000000.
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_EPOCHS as u64))]
     epochs: Option<usize>,
-    /// Environment steps per epoch [config: steps_per_epoch; default 30000].
+    /// Environment steps per epoch [config: steps_per_epoch; default 30000]; 1..=100000000.
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
-    /// Environments stepped together [config: num_envs; default 1].
+    /// Environments stepped together [config: num_envs; default 1]; 1..=65536.
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_NUM_ENVS as u64))]
     num_envs: Option<usize>,
     /// Threads that step the environments (0: the cores available); results do not depend
-    /// on it, so it may change on --resume.
+    /// on it, so it may change on --resume; 0..=1024.
     #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
     threads: usize,
     /// Write a checkpoint every N epochs [config: checkpoint_every; default 1].
