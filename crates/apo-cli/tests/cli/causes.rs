@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use super::{apo, fails, path, small};
+use super::*;
 
 /// A folder holding an executable `ffmpeg` shell script with `body`.
 fn fake_ffmpeg(dir: &Path, body: &str) -> String {
@@ -145,4 +145,238 @@ fn clashing_flags_are_refused_alike_by_every_subcommand() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains("cannot be used with"), "{args:?}: {err}");
     }
+}
+
+#[test]
+fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let proj = tmp.path().join("proj");
+    std::fs::create_dir(&proj).expect("mkdir");
+    let config = ok(&["config", "--algo", "ppo", "--env", "CartPole-v1"]);
+    std::fs::write(proj.join("config.toml"), &config).expect("write");
+    plant(&proj, "train.log", "the user's own log");
+    plant(
+        &proj,
+        "checkpoints/resnet/model.pt",
+        "weights of another project",
+    );
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--out",
+        path(&proj),
+        "--force",
+        "--quiet",
+    ]);
+    assert!(
+        err.contains("nothing in it was touched") && err.contains(".apo-run"),
+        "{err}"
+    );
+    let err = fails(&["train", "--resume", path(&proj), "--quiet"]);
+    assert!(err.contains("not a run directory of apo"), "{err}");
+    assert_eq!(
+        std::fs::read_to_string(proj.join("train.log")).expect("kept"),
+        "the user's own log"
+    );
+    assert!(proj.join("checkpoints/resnet/model.pt").exists());
+    assert_eq!(
+        std::fs::read_to_string(proj.join("config.toml")).expect("kept"),
+        config
+    );
+    assert!(!proj.join(".apo-run").exists() && !proj.join("progress.csv").exists());
+    // a run directory where a file of apo's names was put by someone else: --force refuses
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let marker = run.join(".apo-run");
+    let listed = std::fs::read_to_string(&marker).expect("marker");
+    std::fs::write(&marker, listed.replace("train.log\n", "")).expect("edit");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--out",
+        path(&run),
+        "--force",
+        "--quiet",
+    ]);
+    assert!(
+        err.contains("train.log") && err.contains("did not create"),
+        "{err}"
+    );
+    assert!(run.join("progress.csv").exists(), "nothing may be touched");
+}
+
+#[test]
+fn errors_name_the_culprit_and_are_said_once() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "apo",
+        "--env",
+        "CartPole-v1",
+        "--set",
+        "algo.k=inf",
+        "--out",
+        path(&tmp.path().join("r")),
+    ]);
+    assert!(err.contains("must be finite"), "{err}");
+    // a config file with two algorithms' sections
+    let two = tmp.path().join("two.toml");
+    let both = "[algo.apo]\nk = 5.0\n\n[algo.trpo.trust_region]\nmax_kl = 0.01\n";
+    std::fs::write(&two, both).expect("write");
+    let r = tmp.path().join("r");
+    for extra in [&[][..], &["--algo", "apo"][..]] {
+        let mut args = vec![
+            "train",
+            "--env",
+            "CartPole-v1",
+            "--config",
+            path(&two),
+            "--out",
+            path(&r),
+        ];
+        args.extend_from_slice(extra);
+        let err = fails(&args);
+        assert!(
+            err.contains("several algorithms (apo, trpo)"),
+            "{extra:?}: {err}"
+        );
+    }
+    // a pipe or device as a config file: refused at once, never read
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--config",
+        "/dev/zero",
+        "--out",
+        path(&tmp.path().join("r")),
+    ]);
+    assert!(
+        err.contains("/dev/zero") && err.contains("not a regular file"),
+        "{err}"
+    );
+    // plot: an output folder that does not exist, said with the path, before reading runs
+    let err = fails(&[
+        "plot",
+        path(&tmp.path().join("missing-run")),
+        "--out",
+        path(&tmp.path().join("nodir/x.png")),
+    ]);
+    assert!(
+        err.contains("nodir") && err.contains("does not exist"),
+        "{err}"
+    );
+    // report: options are checked before any work
+    let file = tmp.path().join("file");
+    std::fs::write(&file, "").expect("write");
+    let err = fails(&[
+        "report",
+        path(&tmp.path().join("missing")),
+        "--out",
+        path(&file),
+    ]);
+    assert!(
+        err.contains("--out") && err.contains("not a directory"),
+        "{err}"
+    );
+    let err = fails(&["report", path(&tmp.path().join("missing")), "--smooth", "0"]);
+    assert!(err.contains("--smooth"), "{err}");
+    // a flag and --set that disagree: the flag wins, with a warning
+    let run = tmp.path().join("w");
+    let out = apo(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--seed",
+        "3",
+        "--set",
+        "seed=4",
+        "--quiet",
+        "--out",
+        path(&run),
+    ]);
+    assert!(out.status.success());
+    assert!(
+        text(&out.stderr).contains("--seed 3 overrides --set seed=4"),
+        "{}",
+        text(&out.stderr)
+    );
+    // … and a flag that overrides the --config file's value
+    let file = tmp.path().join("seeded.toml");
+    std::fs::write(&file, "seed = 9\n").expect("write");
+    let w2 = tmp.path().join("w2");
+    let out = apo(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--seed",
+        "3",
+        "--config",
+        path(&file),
+        "--quiet",
+        "--out",
+        path(&w2),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("--seed 3 overrides seed = 9 of --config"),
+        "{}",
+        text(&out.stderr)
+    );
+    // an epoch count past any budget: refused with the rule, before a directory exists
+    let never = tmp.path().join("never");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "18446744073709551615",
+        "--out",
+        path(&never),
+    ]);
+    assert!(
+        err.contains("--epochs") && err.contains("1..=1000000000"),
+        "{err}"
+    );
+    // … and one past the budget in a config file: the config's rule
+    std::fs::write(&file, "epochs = 2000000000\n").expect("write");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--config",
+        path(&file),
+        "--out",
+        path(&never),
+    ]);
+    assert!(
+        err.contains("`epochs`") && err.contains("must be ≤ 1000000000"),
+        "{err}"
+    );
+    assert!(!never.exists());
 }

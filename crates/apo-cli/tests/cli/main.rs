@@ -1,19 +1,19 @@
 //! End-to-end tests of the `apo` binary: reproducibility, resume, bad input, backends.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use apo_cli::progress::{self, ProgressRow};
 
 mod bound_config;
 mod causes;
-mod hardening;
-mod lose_nothing;
+mod checkpoints;
 mod outputs;
 mod physics;
 mod plot;
 mod ranges;
+mod reading;
 mod render;
 mod reporting;
 mod stops;
@@ -87,6 +87,124 @@ pub fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
     ];
     args.extend_from_slice(extra);
     ok(&args)
+}
+
+pub fn spawn(args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn apo")
+}
+
+/// A 500-epoch PPO run on CartPole in `dir`, to be stopped by the test.
+pub fn long_run(dir: &Path) -> Child {
+    spawn(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "500",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
+        path(dir),
+    ])
+}
+
+pub fn wait_for(file: &Path) {
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while !file.exists() {
+        assert!(
+            Instant::now() < deadline,
+            "{} did not appear in time",
+            file.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+pub fn signal(child: &Child, name: &str) {
+    let status = Command::new("kill")
+        .args([&format!("-{name}"), &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(status.success());
+}
+
+/// Waits for `child` at most `secs` seconds; kills it and fails when it takes longer.
+pub fn finish(mut child: Child, secs: u64) -> (Option<i32>, String, String) {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    loop {
+        if child.try_wait().expect("try_wait").is_some() {
+            let out = child.wait_with_output().expect("output");
+            return (
+                out.status.code(),
+                String::from_utf8_lossy(&out.stdout).into_owned(),
+                String::from_utf8_lossy(&out.stderr).into_owned(),
+            );
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("apo did not exit within {secs} s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Plants `text` at `dir/rel` (folders created).
+pub fn plant(dir: &Path, rel: &str, text: &str) -> PathBuf {
+    let file = dir.join(rel);
+    std::fs::create_dir_all(file.parent().expect("parent")).expect("mkdir");
+    std::fs::write(&file, text).expect("plant");
+    file
+}
+
+/// Every file under `dir` whose content is `text`.
+pub fn find_content(dir: &Path, text: &str) -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if std::fs::read_to_string(&p).is_ok_and(|t| t == text) {
+                found.push(p);
+            }
+        }
+    }
+    found
+}
+
+/// A sweep of one PPO CartPole run per seed, `epochs` epochs of 200 steps, in `out`.
+pub fn sweep(out: &Path, epochs: &str, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "sweep",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--seeds",
+        "0",
+        "--epochs",
+        epochs,
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
+        path(out),
+    ];
+    args.extend_from_slice(extra);
+    apo(&args)
+}
+
+pub fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
 }
 
 /// The rows without their wall-clock columns.

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use super::render::{apo_with, gif_frames};
-use super::{fails, ok, path, small};
+use super::*;
 
 /// Every entry of `dir`, sorted.
 fn entries(dir: &Path) -> Vec<String> {
@@ -164,4 +164,145 @@ fn an_mp4_without_ffmpeg_is_an_error_and_writes_no_other_file() {
         ok(&forced);
         assert_eq!(entries(&out), ["v.gif", "v.mp4"]);
     }
+}
+
+#[test]
+fn force_replaces_only_run_directories_and_keeps_foreign_files() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let notes = tmp.path().join("notes");
+    std::fs::create_dir(&notes).expect("mkdir");
+    std::fs::write(notes.join("thesis.txt"), "years of work").expect("write");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--out",
+        path(&notes),
+        "--force",
+        "--quiet",
+    ]);
+    assert!(
+        err.contains("not one") && err.contains("nothing in it was touched"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(notes.join("thesis.txt")).expect("kept"),
+        "years of work"
+    );
+
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    std::fs::write(run.join("curves.png"), "a plot the user made").expect("write");
+    let out = apo(&[
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--out",
+        path(&run),
+        "--force",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("kept what apo did not create"));
+    assert_eq!(
+        std::fs::read_to_string(run.join("curves.png")).expect("kept"),
+        "a plot the user made"
+    );
+    assert!(std::fs::read_to_string(run.join("config.toml"))
+        .expect("config")
+        .contains("[algo.a2c]"));
+}
+
+#[test]
+fn force_removes_only_the_files_apo_created_and_never_a_folder_with_user_files() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &["--set", "keep_checkpoint_every=1"]);
+    let planted = [
+        ("notes.txt", "notes of the user"),
+        ("checkpoints/mybest/model.pt", "the user's best model"),
+        (
+            "checkpoints/latest/mine.txt",
+            "a file the user put into latest",
+        ),
+        (
+            "checkpoints/epoch-000001/why.txt",
+            "a note inside a kept checkpoint",
+        ),
+    ];
+    for (rel, content) in planted {
+        plant(&run, rel, content);
+    }
+    small(&run, &["--force", "--set", "keep_checkpoint_every=1"]);
+    for (rel, content) in planted {
+        assert_eq!(
+            find_content(&run, content).len(),
+            1,
+            "{rel} was lost by --force"
+        );
+    }
+    assert_eq!(
+        std::fs::read_to_string(run.join("checkpoints/mybest/model.pt")).expect("kept"),
+        "the user's best model"
+    );
+    // the run itself was replaced and is whole
+    ok(&["eval", "--run", path(&run), "--episodes", "1"]);
+    let marker = std::fs::read_to_string(run.join(".apo-run")).expect("marker");
+    for entry in [
+        "config.toml",
+        "progress.csv",
+        "episodes.csv",
+        "train.log",
+        "checkpoints",
+        "apo.lock",
+    ] {
+        assert!(
+            marker.lines().any(|l| l == entry),
+            "{entry} not in {marker}"
+        );
+    }
+    assert!(!marker.contains("notes.txt"), "{marker}");
+}
+
+#[test]
+fn a_run_that_fails_before_its_first_epoch_leaves_only_what_was_there() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    // an empty folder the user made, then a run that fails at its first update
+    let dir = tmp.path().join("empty");
+    std::fs::create_dir(&dir).expect("mkdir");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "Pendulum-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "400",
+        "--set",
+        "algo.policy_update.lr=1e30",
+        "--quiet",
+        "--out",
+        path(&dir),
+    ]);
+    assert!(err.contains("non-finite"), "{err}");
+    assert!(dir.is_dir(), "a folder apo did not create stays");
+    assert_eq!(
+        std::fs::read_dir(&dir).expect("ls").count(),
+        0,
+        "nothing of apo's is left"
+    );
 }

@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{apo, ok};
+use super::*;
 
 const ALGORITHMS: [&str; 8] = [
     "apo", "papo", "trpo", "ppo", "a2c", "espo", "vmpo", "alphappo",
@@ -225,4 +225,251 @@ fn every_count_flag_refuses_the_largest_integer_and_one_past_it_naming_the_flag(
             );
         }
     }
+}
+
+#[test]
+fn sizes_are_checked_before_anything_is_created() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    let o = path(&run);
+    for (flags, culprit) in [
+        (
+            vec!["--steps-per-epoch", "1000000000000"],
+            "--steps-per-epoch",
+        ),
+        (
+            vec!["--set", "steps_per_epoch=1000000000000"],
+            "steps_per_epoch",
+        ),
+        (vec!["--set", "hidden=[1000000000]"], "hidden"),
+        (vec!["--set", "hidden=[1000000, 1000000]"], "GiB of memory"),
+        (vec!["--num-envs", "1000000000000"], "1..=65536"),
+        (
+            vec!["--set", "num_envs=1000000000000"],
+            "`num_envs` = 1000000000000",
+        ),
+        (vec!["--set", "init_log_std=1e30"], "init_log_std"),
+    ] {
+        let mut args = vec![
+            "train",
+            "--algo",
+            "apo",
+            "--env",
+            "CartPole-v1",
+            "--quiet",
+            "--out",
+            o,
+        ];
+        args.extend(flags.iter().copied());
+        let err = fails(&args);
+        assert!(err.contains(culprit), "{flags:?}: {err}");
+        assert!(
+            !run.exists(),
+            "{flags:?}: a run that fails before its first epoch leaves no directory behind"
+        );
+    }
+    let err = fails(&[
+        "train",
+        "--algo",
+        "apo",
+        "--env",
+        "CartPole-v1",
+        "--seed",
+        "9223372036854775808",
+        "--out",
+        o,
+    ]);
+    assert!(err.contains("0..=9223372036854775807"), "{err}");
+    for args in [
+        vec!["bench", "update", "--obs", "0"],
+        vec!["bench", "update", "--act", "0"],
+        vec!["bench", "update", "--batch", "0"],
+        vec!["bench", "policy", "--obs", "0"],
+        vec!["bench", "policy", "--batch", "0"],
+        vec!["bench", "env", "--env", "CartPole-v1", "--steps", "0"],
+    ] {
+        let out = apo(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("is not in 1.."), "{args:?}: {err}");
+    }
+    let err = fails(&["bench", "update", "--batch", "10000000", "--obs", "100000"]);
+    assert!(err.contains("GiB of memory"), "{err}");
+}
+
+#[test]
+fn a_diverging_update_stops_the_run_with_an_error_and_keeps_the_last_good_checkpoint() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    let train = |extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            "--algo",
+            "a2c",
+            "--env",
+            "Pendulum-v1",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "400",
+        ];
+        args.extend(["--quiet", "--out", path(&run)]);
+        args.extend_from_slice(extra);
+        apo(&args)
+    };
+    // diverging in the first epoch: an error, exit 1, and no run directory left behind
+    // a policy learning rate of 1e30 sends the log-std to ~1e30, and the KL after the update to NaN
+    let out = train(&["--set", "algo.policy_update.lr=1e30"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "a diverged run must not exit 0: {err}"
+    );
+    assert!(
+        err.contains("epoch 1: the update produced")
+            && err.contains("non-finite")
+            && err.contains("nothing was saved"),
+        "{err}"
+    );
+    // the error describes the epoch's batch, where a non-finite update would come from
+    assert!(
+        err.contains("the epoch's batch: 400 transitions, max |obs| ") && err.contains("adv_scale"),
+        "{err}"
+    );
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("run finished"));
+    assert!(!run.exists());
+
+    // diverging later: the rows and the checkpoint of the good epochs stay (a policy learning
+    // rate of 1e3 keeps epoch 1 finite and sends epoch 2's update to NaN; a run's learning
+    // rate cannot be edited under its checkpoint, bound_config.rs)
+    let out = apo(&[
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "Pendulum-v1",
+        "--epochs",
+        "3",
+        "--steps-per-epoch",
+        "400",
+        "--set",
+        "algo.policy_update.lr=1e3",
+        "--quiet",
+        "--out",
+        path(&run),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("epoch 2: the update produced") && err.contains("non-finite"),
+        "{err}"
+    );
+    assert!(err.contains("last good checkpoint (epoch 1)"), "{err}");
+    // the settings that scale the update are named with their values
+    assert!(err.contains("algo.a2c.policy_update.lr = 1000"), "{err}");
+    assert_eq!(timeless(&run).len(), 1);
+    let state = std::fs::read_to_string(run.join("checkpoints/latest/state.json"))
+        .expect("last good checkpoint");
+    assert!(state.contains("\"epoch\": 1"), "{state}");
+}
+
+#[test]
+fn sweeps_are_counted_before_anything_is_allocated() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("s");
+    let started = Instant::now();
+    for seeds in ["0..9223372036854775807", "0..1000000000", "0..10001"] {
+        let result = apo(&[
+            "sweep",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--seeds",
+            seeds,
+            "--out",
+            path(&out),
+        ]);
+        let err = text(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{seeds}: {err}");
+        assert!(err.contains("--max-runs"), "{seeds}: {err}");
+    }
+    let values: Vec<String> = (0..1000)
+        .map(|i| format!("{}", 0.001 * (i + 1) as f64))
+        .collect();
+    let (k, w) = (
+        format!("algo.k={}", values.join(",")),
+        format!("algo.omega1={}", values.join(",")),
+    );
+    let err = fails(&[
+        "sweep",
+        "--algo",
+        "apo",
+        "--env",
+        "Pendulum-v1",
+        "--grid",
+        &k,
+        "--grid",
+        &w,
+        "--out",
+        path(&out),
+    ]);
+    assert!(
+        err.contains("3000000 runs") || err.contains("1000000"),
+        "{err}"
+    );
+    assert!(
+        started.elapsed() < Duration::from_secs(60),
+        "{:?}",
+        started.elapsed()
+    );
+    assert!(!out.exists(), "nothing is created");
+    // an explicit limit
+    let err = fails(&[
+        "sweep",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--seeds",
+        "0..3",
+        "--max-runs",
+        "2",
+        "--out",
+        path(&out),
+    ]);
+    assert!(
+        err.contains("more than the 2") && err.contains("--max-runs"),
+        "{err}"
+    );
+}
+
+#[test]
+fn memory_is_checked_before_anything_is_created() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let err = fails(&[
+        "bench", "policy", "--obs", "100000", "--act", "10000", "--batch", "100000",
+    ]);
+    assert!(
+        err.contains("GiB of memory") && err.contains("--batch"),
+        "{err}"
+    );
+    let dir = tmp.path().join("humanoids");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "Humanoid",
+        "--num-envs",
+        "65536",
+        "--steps-per-epoch",
+        "65536",
+        "--quiet",
+        "--out",
+        path(&dir),
+    ]);
+    assert!(err.contains("GiB of memory"), "{err}");
+    assert!(!dir.exists(), "no directory is left behind");
 }

@@ -38,7 +38,7 @@ fn help_shows_defaults_and_config_prints_every_key_documented() {
     assert!(
         text.contains("[algo.papo.policy_update]")
             && text.contains(
-                "# Adam learning rate (paper: 3e-4 policy, 1e-3 value); > 0\nlr = 0.0003"
+                "# Adam learning rate (paper: 3e-4 policy, 1e-3 value); (0, 1e30]\nlr = 0.0003"
             ),
         "{text}"
     );

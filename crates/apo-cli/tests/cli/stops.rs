@@ -6,7 +6,7 @@
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::path;
+use super::*;
 
 #[test]
 fn one_sigterm_ends_a_long_update_within_seconds() {
@@ -100,4 +100,119 @@ fn a_long_bootstrap_shows_a_progress_bar_with_an_estimate_on_a_terminal() {
     // without a terminal (a pipe, a file), no bar
     let piped = super::apo(&["stats", path(&scores), "--reps", "10000"]);
     assert!(!String::from_utf8_lossy(&piped.stderr).contains("bootstrap"));
+}
+
+#[test]
+fn sigterm_checkpoints_and_exits_143_with_the_resume_command() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    let child = long_run(&run);
+    wait_for(&run.join("progress.csv"));
+    signal(&child, "TERM");
+    let (code, stdout, stderr) = finish(child, 120);
+    assert_eq!(code, Some(143), "{stdout}{stderr}");
+    assert!(
+        stdout.contains("interrupted by SIGTERM")
+            && stdout.contains(&format!("apo train --resume {}", path(&run))),
+        "{stdout}"
+    );
+    let done = timeless(&run).len();
+    let state =
+        std::fs::read_to_string(run.join("checkpoints/latest/state.json")).expect("checkpoint");
+    assert!(state.contains(&format!("\"epoch\": {done}")), "{state}");
+}
+
+#[test]
+fn a_second_interrupt_exits_at_once() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    // A2C never stops its policy update early: 10 000 Adam passes over 2000 steps keep the
+    // first epoch's update busy for longer than this test, and the update does not look at
+    // the stop flag (the watchdog of `stops.rs` would end it 10 s after the first signal).
+    let child = spawn(&[
+        "train",
+        "--algo",
+        "a2c",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "2000",
+        "--quiet",
+        "--out",
+        path(&run),
+        "--set",
+        "algo.policy_update.iters=10000",
+        "--set",
+        "algo.value_update.iters=10000",
+    ]);
+    wait_for(&run.join("train.log"));
+    std::thread::sleep(Duration::from_secs(3));
+    signal(&child, "INT");
+    std::thread::sleep(Duration::from_secs(1));
+    let mut child = child;
+    assert!(
+        child.try_wait().expect("try_wait").is_none(),
+        "the first interrupt lets the update finish"
+    );
+    signal(&child, "INT");
+    let (code, stdout, _) = finish(child, 30);
+    assert_eq!(code, Some(130));
+    assert!(!stdout.contains("checkpoint written"), "{stdout}");
+}
+
+#[test]
+fn a_signal_to_the_sweep_reaches_its_runs_which_checkpoint_and_nothing_is_orphaned() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("s");
+    let child = Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args([
+            "sweep",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--seeds",
+            "0",
+            "--epochs",
+            "500",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(&out),
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let run = out.join("CartPole-v1-ppo-s0");
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while !run.join("checkpoints/latest/manifest.json").exists() {
+        assert!(Instant::now() < deadline, "the run did not start");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(status.success());
+    let started = Instant::now();
+    let output = child.wait_with_output().expect("wait");
+    assert!(started.elapsed() < Duration::from_secs(120));
+    assert_eq!(output.status.code(), Some(143), "{}", text(&output.stderr));
+    assert!(
+        text(&output.stdout).contains("interrupted"),
+        "{}",
+        text(&output.stdout)
+    );
+    // no child holds the run: its lock is free, and its checkpoint is before the target
+    apo_cli::run_dir::RunLock::acquire(&run).expect("the run's lock is free: no orphan");
+    let epoch = apo_cli::checkpoint::latest_epoch(&run)
+        .expect("read")
+        .expect("a checkpoint");
+    assert!(epoch < 500, "the run stopped early (epoch {epoch})");
+    let rows = super::timeless(&run);
+    assert_eq!(rows.len(), epoch, "progress.csv agrees with the checkpoint");
 }

@@ -19,7 +19,7 @@ fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
 }
 
 /// A run directory of `algo` on CartPole with rows `(mean, min)` (bound = mean − 10).
-fn run(dir: &Path, algo: Algorithm, rows: &[(f64, f64)]) {
+pub fn run(dir: &Path, algo: Algorithm, rows: &[(f64, f64)]) {
     std::fs::create_dir_all(dir).expect("create run dir");
     let mut config = RunConfig::defaults(algo, "CartPole-v1");
     // complete runs: as many epochs as rows; the seed of the name's `-s<seed>`
@@ -500,49 +500,4 @@ fn the_paper_preset_sets_the_reference_choices() {
     );
     let defaults = ok(&["config", "--algo", "trpo", "--env", "Hopper"]);
     assert!(defaults.lines().any(|l| l == "cg_iters = 10"), "{defaults}");
-}
-
-#[test]
-fn the_same_run_under_two_paths_counts_once_and_gaps_in_epochs_are_named() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let (a, b, c) = (
-        tmp.path().join("CartPole-v1-apo-s0"),
-        tmp.path().join("copy/CartPole-v1-apo-s0"),
-        tmp.path().join("CartPole-v1-apo-s1"),
-    );
-    run(&a, Algorithm::Apo, &[(10.0, 1.0), (20.0, 2.0)]);
-    run(&b, Algorithm::Apo, &[(10.0, 1.0), (20.0, 2.0)]);
-    // another seed is another run
-    run(&c, Algorithm::Apo, &[(30.0, 3.0), (40.0, 4.0)]);
-    let report = apo_cli::report::report(&[a.clone(), b.clone(), c.clone()], 1, &mut |_, _| {
-        anyhow::bail!("no baseline in this test")
-    })
-    .expect("report");
-    assert_eq!(report.groups.len(), 1);
-    assert_eq!(
-        report.groups[0].runs,
-        vec![a.clone(), c.clone()],
-        "the copy counts once"
-    );
-
-    // epochs 1, 2, 7: the gap is named, and the run's epochs are 7, not 3 rows
-    let gap = tmp.path().join("gap");
-    run(&gap, Algorithm::Apo, &[(1.0, 0.0), (2.0, 0.0), (3.0, 0.0)]);
-    let mut rows = progress::read(&gap.join("progress.csv")).expect("rows");
-    rows[2].epoch = 7;
-    progress::write(&gap.join("progress.csv"), &rows).expect("write");
-    let read = progress::read_lenient(&gap.join("progress.csv"), false).expect("read");
-    assert_eq!(read.missing, vec![(3, 6)]);
-    assert_eq!(
-        apo_cli::summary::summarize(&gap, 1)
-            .expect("summary")
-            .epochs,
-        7
-    );
-    let out = super::apo(&["summary", path(&gap)]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        stderr.contains("3–6") && stderr.contains("missing"),
-        "{stderr}"
-    );
 }
