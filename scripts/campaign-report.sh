@@ -41,6 +41,8 @@ for suite in ${SUITES:-$(ls "$campaign/eval")}; do
     dest="$runs/${item##*|}"
     mkdir -p "$dest"
     cp "${item%%|*}/config.toml" "${item%%|*}/progress.csv" "$dest/"
+    # every episode, where the run recorded them (`apo report` recomputes the returns from it)
+    if [ -f "${item%%|*}/episodes.csv" ]; then cp "${item%%|*}/episodes.csv" "$dest/"; fi
   done
 done
 "$apo" report "$runs" --last "${LAST:-20}" --out "$out/report"

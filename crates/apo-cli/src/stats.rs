@@ -450,8 +450,11 @@ pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
     Ok(Comparison { tasks, algorithms })
 }
 
-/// The thresholds of a profile when none are given: 101 from the lowest to the highest score
-/// of all algorithms.
+/// The number of thresholds of the default performance profiles.
+pub const DEFAULT_TAUS: usize = 101;
+
+/// The thresholds of a profile when none are given: [`DEFAULT_TAUS`] from the lowest to the
+/// highest score of all algorithms.
 pub fn default_taus(comparison: &Comparison) -> Vec<f64> {
     let all = comparison
         .algorithms
@@ -462,7 +465,7 @@ pub fn default_taus(comparison: &Comparison) -> Vec<f64> {
         (lo.min(s), hi.max(s))
     });
     if low.is_finite() {
-        linspace(low, high, 101)
+        linspace(low, high, DEFAULT_TAUS)
     } else {
         vec![0.0]
     }
@@ -472,6 +475,13 @@ pub fn default_taus(comparison: &Comparison) -> Vec<f64> {
 /// performance profiles at `taus` of the algorithms of `comparison`.
 pub fn analyze(comparison: &Comparison, bootstrap: &StratifiedBootstrap, taus: &[f64]) -> Analysis {
     analyze_with_progress(comparison, bootstrap, taus, &mut |_| {})
+}
+
+/// The bytes [`analyze`] holds at once for the performance profiles of one algorithm: every
+/// resample's fraction at every threshold (`reps × taus` values), which its intervals need.
+/// Checked against the machine's memory before any work (`input::check_fits`).
+pub fn profile_memory(bootstrap: &StratifiedBootstrap, taus: usize) -> f64 {
+    bootstrap.reps as f64 * taus as f64 * std::mem::size_of::<f64>() as f64
 }
 
 /// The bootstrap resamples [`analyze`] draws for a comparison of `algorithms` algorithms: its

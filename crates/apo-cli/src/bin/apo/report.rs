@@ -45,6 +45,18 @@ pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
         let fixed = ["report.md".to_string(), "report.csv".to_string()];
         apo_cli::run_dir::check_outputs(out, report::REPORT_MARKER, &fixed)?;
     }
+    // the profiles hold reps × thresholds values at once (the default thresholds: 101)
+    apo_cli::input::check_fits(
+        apo_cli::stats::profile_memory(
+            &apo_cli::stats::StratifiedBootstrap {
+                reps: args.reps,
+                level: 0.95,
+                seed: args.ci_seed,
+            },
+            apo_cli::stats::DEFAULT_TAUS,
+        ),
+        &format!("--reps {}", args.reps),
+    )?;
     let runs = report::find_runs(&args.runs)?;
     let episodes = args.random_episodes as usize;
     let mut report = report::report(&runs, args.last as usize, &mut |env, options| {

@@ -60,6 +60,14 @@ pub fn run(args: &StatsArgs) -> anyhow::Result<()> {
         level: 0.95,
         seed: args.ci_seed,
     };
+    apo_cli::input::check_fits(
+        stats::profile_memory(&bootstrap, taus.len()),
+        &format!(
+            "--reps {} with {} thresholds (--taus)",
+            args.reps,
+            taus.len()
+        ),
+    )?;
     let bar = crate::work_bar(
         stats::analysis_work(comparison.algorithms.len(), &bootstrap),
         "bootstrap",
