@@ -26,6 +26,9 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     sync_dir(dir)
 }
 
+/// The bytes of a file's name kept in its temporary file's name.
+const TEMP_NAME_KEPT: usize = 200;
+
 /// Temporary files made by this process so far (their names are unique with the process id).
 static TEMPS: AtomicU64 = AtomicU64::new(0);
 
@@ -36,6 +39,13 @@ static TEMPS: AtomicU64 = AtomicU64::new(0);
 /// # Errors
 /// The OS error of the creation.
 pub fn create_temp(dir: &Path, name: &str) -> std::io::Result<(PathBuf, std::fs::File)> {
+    // a long name is cut (at a character boundary) so that the temporary name stays within the
+    // 255 bytes a file name may have
+    let mut cut = name.len().min(TEMP_NAME_KEPT);
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    let name = &name[..cut];
     loop {
         let n = TEMPS.fetch_add(1, Ordering::Relaxed);
         let tmp = dir.join(format!(".{name}.apo-{}-{n}.tmp", std::process::id()));

@@ -254,6 +254,7 @@ pub fn save<B: Backend>(
 ) -> anyhow::Result<()> {
     let root = dir(run);
     std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
+    clear_unfinished(&root)?;
     let tmp = root.join(format!(".tmp-{}", state.run.epoch));
     write_into(&tmp, learner, state, shapes)
         .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
@@ -300,6 +301,22 @@ pub fn save_best<B: Backend>(
     std::fs::rename(&tmp, &best)?;
     atomic::sync_dir(&root)?;
     clear(&old)
+}
+
+/// Removes the unfinished checkpoints a stopped process left in `root` (`.tmp-<N>`,
+/// `.tmp-keep-<N>`, `.tmp-best`: never read, and the run's lock says no other apo writes
+/// them now).
+fn clear_unfinished(root: &Path) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return Ok(());
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with(".tmp-") && is_checkpoint_name(&name) {
+            clear(&entry.path())?;
+        }
+    }
+    Ok(())
 }
 
 /// The folder of the best evaluation's checkpoint in `checkpoints/`.
@@ -401,8 +418,23 @@ fn write_synced(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     file.sync_all()
 }
 
-/// Writes and syncs every file of a checkpoint into the fresh directory `tmp`.
+/// Writes and syncs every file of a checkpoint into the fresh directory `tmp`; on an error
+/// (a full disk), what was written of it is removed.
 fn write_into<B: Backend>(
+    tmp: &Path,
+    learner: &Learner<B, MlpPolicyConfig>,
+    state: &TrainState,
+    shapes: &Shapes,
+) -> anyhow::Result<()> {
+    let written = write_files(tmp, learner, state, shapes);
+    if written.is_err() {
+        let _ = clear(tmp);
+    }
+    written
+}
+
+/// [`write_into`]'s work.
+fn write_files<B: Backend>(
     tmp: &Path,
     learner: &Learner<B, MlpPolicyConfig>,
     state: &TrainState,
@@ -706,6 +738,8 @@ fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
             );
         }
     }
+    // an edited config.toml is named by its keys before the networks it changed are compared
+    check_learned_with(from, &manifest.shapes, shapes)?;
     if manifest.shapes.networks() != shapes.networks() {
         bail!(
             "the networks in {} ({}) do not fit this run ({}): the checkpoint is from another run or config.toml was edited",
@@ -714,7 +748,7 @@ fn verify(from: &Path, shapes: &Shapes) -> anyhow::Result<()> {
             shapes
         );
     }
-    check_learned_with(from, &manifest.shapes, shapes)
+    Ok(())
 }
 
 /// Refuses, naming the keys, a run whose config now (`now`) differs from what the checkpoint

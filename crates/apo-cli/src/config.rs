@@ -876,6 +876,30 @@ fn set_path(doc: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), 
     merge(doc, layer, "")
 }
 
+/// Refuses a key given twice among `--set KEY=VALUE` options (`algo.k` and `algo.<name>.k`
+/// are one key), as `apo sweep` refuses a grid value given twice: which one was meant?
+///
+/// # Errors
+/// Naming the key and both options.
+pub fn check_repeated_sets(sets: &[String]) -> anyhow::Result<()> {
+    let mut seen: BTreeMap<String, &str> = BTreeMap::new();
+    for set in sets {
+        let Some((key, _)) = set.split_once('=') else {
+            continue;
+        };
+        let mut parts: Vec<&str> = key.trim().split('.').collect();
+        // `algo.<name>.<key>` and `algo.<key>` name the same key of a run's algorithm
+        if parts.len() > 2 && parts[0] == "algo" && parts[1].parse::<Algorithm>().is_ok() {
+            parts.remove(1);
+        }
+        let normalized = parts.join(".");
+        if let Some(first) = seen.insert(normalized, set) {
+            anyhow::bail!("--set {first} and --set {set} set one key twice; give it once");
+        }
+    }
+    Ok(())
+}
+
 /// A `--set` value: TOML syntax (`0.99`, `true`, `[64, 64]`, `"x"`), or a bare string.
 ///
 /// # Errors
@@ -890,6 +914,13 @@ pub fn parse_value(text: &str) -> Result<toml::Value, String> {
     let overflowed = matches!(parsed, Some(toml::Value::Float(f)) if !f.is_finite());
     if let Some(value) = parsed.filter(|_| !(overflowed && looks_numeric(text))) {
         return Ok(value);
+    }
+    if text.starts_with(['[', '{']) {
+        return Err(format!(
+            "`{text}` is not a TOML list or table (a number in it out of range? integers are from {} to {}, floats finite)",
+            i64::MIN,
+            i64::MAX
+        ));
     }
     if looks_numeric(text) {
         return Err(format!(

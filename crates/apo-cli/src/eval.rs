@@ -114,10 +114,20 @@ impl LoadedRun {
             );
         }
         let from = checkpoint::locate(run_dir, which)?.with_context(|| {
-            format!(
-                "{} has no checkpoint yet: the run has not completed an epoch",
-                run_dir.display()
-            )
+            let recorded = crate::progress::read_lenient(&run_dir.join("progress.csv"), true)
+                .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
+            if recorded > 0 {
+                format!(
+                    "{} has no checkpoint (checkpoints/latest and previous are missing), although its \
+                     progress.csv records {recorded} epochs: the checkpoints were removed",
+                    run_dir.display()
+                )
+            } else {
+                format!(
+                    "{} has no checkpoint yet: the run has not completed an epoch",
+                    run_dir.display()
+                )
+            }
         })?;
         // the run's action mapping, but episodes seeded by the evaluation's own seeds
         let options = apo_envs::MakeOptions {

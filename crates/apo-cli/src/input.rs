@@ -82,6 +82,16 @@ pub fn check_output_file(path: &Path, flag: &str, replace: bool) -> anyhow::Resu
     if path.is_dir() {
         bail!("{flag} {} is a directory; give a file name", path.display());
     }
+    // a link (even one to nothing) exists: it is replaced only with --force, never followed
+    if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink())
+        && std::fs::metadata(path).is_err()
+        && !replace
+    {
+        bail!(
+            "{flag} {} exists (a symbolic link); apo replaces an existing file only with --force",
+            path.display()
+        );
+    }
     if let Ok(meta) = std::fs::metadata(path) {
         if !meta.is_file() {
             bail!(
@@ -149,6 +159,23 @@ fn probe_name(path: &Path) -> String {
     path.file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default()
+}
+
+/// A parser of a count flag in `low..=high` (for clap's `value_parser`) whose every error says
+/// the range: clap's own says "number too large to fit in target type" for
+/// `99999999999999999999` and "invalid digit found in string" for `-1`.
+pub fn count<T: TryFrom<u64>>(
+    low: u64,
+    high: u64,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        text.trim()
+            .parse::<u64>()
+            .ok()
+            .filter(|v| (low..=high).contains(v))
+            .and_then(|v| T::try_from(v).ok())
+            .ok_or_else(|| format!("`{text}` is not in {low}..={high}"))
+    }
 }
 
 /// Assumed memory where `/proc/meminfo` cannot be read.

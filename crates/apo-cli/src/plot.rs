@@ -155,7 +155,8 @@ impl Run {
     fn load(dir: &Path, smooth: usize, column_name: Option<&str>) -> anyhow::Result<Self> {
         let context = || format!("cannot plot the run in {}", dir.display());
         let config = RunConfig::load(&dir.join("config.toml")).with_context(context)?;
-        let rows = progress::read_rows_with_non_finite(&dir.join(crate::run_dir::PROGRESS))
+        let rows = crate::run_dir::progress_of(dir)
+            .and_then(|path| progress::read_rows_with_non_finite(&path))
             .with_context(context)?;
         if let Some(name) = column_name {
             let (values, skipped) = named_column(&rows, name, smooth)
@@ -209,7 +210,8 @@ impl Run {
         let runs = dirs
             .iter()
             .map(|dir| {
-                progress::read_rows_with_non_finite(&dir.join(crate::run_dir::PROGRESS))
+                crate::run_dir::progress_of(dir)
+                    .and_then(|path| progress::read_rows_with_non_finite(&path))
                     .with_context(|| format!("cannot plot the run in {}", dir.display()))
             })
             .collect::<anyhow::Result<Vec<_>>>()?;

@@ -12,6 +12,9 @@ use std::path::Path;
 
 pub use apo_train::metrics::{EpochTimes, ProgressRow, TIME_COLUMNS};
 
+/// The columns every `progress.csv` of apo has, first in its header.
+const REQUIRED_COLUMNS: [&str; 4] = ["epoch", "env_steps", "episodes", "ep_ret_mean"];
+
 /// A progress file read for reporting: the rows kept and why the others were left out.
 #[derive(Debug, Clone, Default)]
 pub struct Progress {
@@ -88,6 +91,20 @@ pub fn read_lenient(path: &Path, keep_non_finite: bool) -> anyhow::Result<Progre
         .headers()
         .map_err(|e| anyhow::anyhow!("{}: cannot read the header: {e}", path.display()))?
         .clone();
+    if let Some(missing) = REQUIRED_COLUMNS
+        .iter()
+        .find(|c| !headers.iter().any(|h| h == **c))
+    {
+        let shown: Vec<&str> = headers.iter().take(12).collect();
+        anyhow::bail!(
+            "{} is not a progress file of apo: it has no `{missing}` column; its header is `{}{}` \
+             (apo's starts with {})",
+            path.display(),
+            shown.join(","),
+            if headers.len() > 12 { ",…" } else { "" },
+            REQUIRED_COLUMNS.join(",")
+        );
+    }
     let mut progress = Progress::default();
     let mut first_error = None;
     for (i, record) in reader.records().enumerate() {

@@ -253,7 +253,10 @@ pub fn report(
     last: usize,
     baseline: &mut dyn FnMut(&str, &apo_envs::MakeOptions) -> anyhow::Result<Baseline>,
 ) -> anyhow::Result<Report> {
-    let mut groups: BTreeMap<(String, String, String), (Algorithm, Vec<PathBuf>)> = BTreeMap::new();
+    // (environment, algorithm, variant, epoch target): runs of another target are never seeds
+    // of one group
+    type Key = (String, String, String, usize);
+    let mut by_target: BTreeMap<Key, (Algorithm, Vec<PathBuf>)> = BTreeMap::new();
     let mut options = BTreeMap::new();
     let mut targets = BTreeMap::new();
     // a run's identity is what it learned with, not its path: a copy counts once
@@ -268,12 +271,13 @@ pub fn report(
             dir.clone(),
             (config.train.epochs, config.train.algo.probability_factor()),
         );
-        options
-            .entry(config.train.env.clone())
-            .or_insert(apo_envs::MakeOptions {
-                fixed_reset_seed: None,
-                ..config.train.make_options()
-            });
+        // `CartPole` and `cartpole-v1` are one environment
+        let env = apo_envs::registry::canonical_name(&config.train.env)
+            .unwrap_or_else(|_| config.train.env.clone());
+        options.entry(env.clone()).or_insert(apo_envs::MakeOptions {
+            fixed_reset_seed: None,
+            ..config.train.make_options()
+        });
         let algo = config.train.algo.algorithm();
         let name = dir
             .file_name()
@@ -290,11 +294,41 @@ pub fn report(
             continue;
         }
         identities.insert(identity, dir.clone());
-        groups
-            .entry((config.train.env.clone(), algo.name().to_string(), variant))
+        by_target
+            .entry((env, algo.name().to_string(), variant, config.train.epochs))
             .or_insert_with(|| (algo, Vec::new()))
             .1
             .push(dir.clone());
+    }
+    // a setting run to several epoch targets is reported once per target, its label saying
+    // which
+    let mut targets_of: BTreeMap<(String, String, String), Vec<usize>> = BTreeMap::new();
+    for (env, algo, variant, epochs) in by_target.keys() {
+        targets_of
+            .entry((env.clone(), algo.clone(), variant.clone()))
+            .or_default()
+            .push(*epochs);
+    }
+    let mut groups: BTreeMap<(String, String, String), (Algorithm, Vec<PathBuf>)> = BTreeMap::new();
+    for ((env, algo_name, variant, epochs), group) in by_target {
+        let several = &targets_of[&(env.clone(), algo_name.clone(), variant.clone())];
+        let variant = if several.len() > 1 {
+            if epochs == several[0] {
+                eprintln!(
+                "note: the runs of {env} {algo_name}{} have different epoch targets ({}); they are reported apart",
+                if variant.is_empty() { String::new() } else { format!(" ({variant})") },
+                several.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")
+                );
+            }
+            if variant.is_empty() {
+                format!("epochs={epochs}")
+            } else {
+                format!("{variant} epochs={epochs}")
+            }
+        } else {
+            variant
+        };
+        groups.insert((env, algo_name, variant), group);
     }
     let mut reports = Vec::new();
     for ((env, _, variant), (algo, dirs)) in groups {
@@ -303,8 +337,8 @@ pub fn report(
         let mut summaries = Vec::new();
         for dir in &dirs {
             let (target, k) = targets.get(dir).copied().unwrap_or((0, 0.0));
-            let mut rows = progress::read_rows(&dir.join(run_dir::PROGRESS))
-                .with_context(|| format!("run {}", dir.display()))?;
+            let mut rows =
+                crate::summary::run_rows(dir).with_context(|| format!("run {}", dir.display()))?;
             // the episodes, where the run recorded them, are what its statistics are made of
             crate::episodes::recompute_rows(&mut rows, dir, k)
                 .with_context(|| format!("run {}", dir.display()))?;

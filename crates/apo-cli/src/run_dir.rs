@@ -134,6 +134,30 @@ pub fn claim_new(dir: &Path, names: &[&str]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The run's video folder `videos/`, claimed for apo and created when it is not there yet:
+/// the videos apo names there (`render.gif`, `epoch-<N>.gif`) are then apo's own, replaced by
+/// each render. A `videos` that apo did not make (a user's folder, or a link) is refused: apo
+/// would otherwise replace the files of the user's of those names.
+///
+/// # Errors
+/// A `videos` apo did not make, or one that cannot be created.
+pub fn own_videos(run: &Path) -> anyhow::Result<PathBuf> {
+    claim_new(run, &[VIDEOS])?;
+    let dir = run.join(VIDEOS);
+    let listed = created_entries(run)?.unwrap_or_default();
+    let link = std::fs::symlink_metadata(&dir).is_ok_and(|m| m.file_type().is_symlink());
+    if !listed.contains(VIDEOS) || link {
+        bail!(
+            "{} exists and was not made by apo{}; apo does not write its videos there: move it away, \
+             or give `apo render` another --out",
+            dir.display(),
+            if link { " (a symbolic link)" } else { "" }
+        );
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    Ok(dir)
+}
+
 /// Before apo writes the files `names` into the output folder `dir` (chosen by the user, named
 /// by apo: `report.md`, …), checks that none of them exists unless an earlier apo wrote it
 /// (listed in `dir/marker`), then lists them there: apo overwrites its own outputs, never a
@@ -166,6 +190,38 @@ pub fn check_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Resu
         );
     }
     Ok(())
+}
+
+/// The `progress.csv` of the run in `dir`, or why there is none: a folder that holds a
+/// `config.toml` but no run (no marker, no checkpoint: an `apo config` output) is named so,
+/// and a run without one is told apart from it. What every reader of a run's records calls
+/// first (`summary`, `report`, `plot`, `sweep`).
+///
+/// # Errors
+/// No `progress.csv`, with the cause.
+pub fn progress_of(dir: &Path) -> anyhow::Result<PathBuf> {
+    let path = dir.join(PROGRESS);
+    if std::fs::symlink_metadata(&path).is_ok() {
+        return Ok(path);
+    }
+    if check_resumable(dir).is_err() {
+        bail!(
+            "{} holds a config.toml but no run (neither apo's marker nor a checkpoint): train one with \
+             `apo train --config {} --out <new folder>`",
+            dir.display(),
+            dir.join(CONFIG).display()
+        );
+    }
+    match crate::checkpoint::latest_epoch(dir) {
+        Ok(Some(epoch)) if epoch > 0 => bail!(
+            "{} has no {PROGRESS}, although its checkpoint is at epoch {epoch}: the record was removed",
+            dir.display()
+        ),
+        _ => bail!(
+            "{} has no {PROGRESS} yet: the run has not completed an epoch",
+            dir.display()
+        ),
+    }
 }
 
 /// Whether `dir` is a run directory (its `config.toml` is a valid run configuration).
@@ -229,6 +285,46 @@ pub fn remove_run_files(
     Ok(left)
 }
 
+/// Opens apo's own file `path` of a run directory with `options`, never through a symbolic
+/// link (a link there would make apo write where the user did not point it): a link is an
+/// error naming it.
+///
+/// # Errors
+/// The OS's error; for a link, one that says so.
+pub fn open_own(options: &mut OpenOptions, path: &Path) -> anyhow::Result<File> {
+    if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) {
+        bail!(
+            "{} is a symbolic link; apo writes its own files in a run directory only as plain files \
+             (remove the link)",
+            path.display()
+        );
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        // closes the gap between the check and the open
+        options.custom_flags(libc::O_NOFOLLOW);
+    }
+    Ok(options.open(path)?)
+}
+
+/// Removes the temporary files a stopped apo left in the run directory `dir` beside its own
+/// files (`.progress.csv.apo-<pid>-<n>.tmp`, …; a second signal exits mid-write): call it
+/// holding the run's lock, so that no other apo is writing them.
+///
+/// # Errors
+/// When such a file cannot be removed.
+pub fn remove_stale_temps(dir: &Path) -> anyhow::Result<()> {
+    let mut names: Vec<String> = created_entries(dir)?
+        .unwrap_or_default()
+        .into_iter()
+        .collect();
+    names.push(MARKER.to_string());
+    let temps = crate::atomic::temps_of(dir, &names);
+    crate::removal::remove_created(dir, &temps, false)?;
+    Ok(())
+}
+
 /// An exclusive lock on a run directory, held while it lives (an OS file lock on
 /// `apo.lock`, released by the OS also when the process dies).
 #[derive(Debug)]
@@ -240,13 +336,15 @@ impl RunLock {
     /// Locks `dir`; fails, naming the other process, when another apo holds it.
     pub fn acquire(dir: &Path) -> anyhow::Result<Self> {
         let path = dir.join(LOCK);
-        let mut file = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .read(true)
-            .write(true)
-            .open(&path)
-            .with_context(|| format!("cannot open the lock file {}", path.display()))?;
+        let mut file = open_own(
+            OpenOptions::new()
+                .create(true)
+                .truncate(false)
+                .read(true)
+                .write(true),
+            &path,
+        )
+        .with_context(|| format!("cannot open the lock file {}", path.display()))?;
         match file.try_lock() {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => {
@@ -320,6 +418,13 @@ impl NewRunDir {
             });
         }
         if !force {
+            if created_entries(dir)?.is_none() {
+                bail!(
+                    "{} already exists and apo did not make it (no marker {MARKER}); choose another --out \
+                     (apo never writes into a folder of yours)",
+                    dir.display()
+                );
+            }
             bail!(
                 "run directory {} already exists; pass --force to replace it, or --resume {} to continue it",
                 dir.display(),

@@ -37,10 +37,36 @@ pub struct RunSummary {
 
 /// Summarizes the run in `dir` with the last `last` epochs.
 pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
-    Ok(summarize_rows(
-        &progress::read_rows(&dir.join(crate::run_dir::PROGRESS))?,
-        last,
-    ))
+    Ok(summarize_rows(&run_rows(dir)?, last))
+}
+
+/// The rows of the run in `dir`'s `progress.csv` ([`progress::read_rows`], after
+/// [`crate::run_dir::progress_of`]); rows missing at the end — the checkpoint is at a later
+/// epoch than the last row — are named in a warning, as a gap in the middle is.
+///
+/// # Errors
+/// As those two.
+pub fn run_rows(dir: &Path) -> anyhow::Result<Vec<progress::ProgressRow>> {
+    let path = crate::run_dir::progress_of(dir)?;
+    let rows = progress::read_rows(&path)?;
+    let last = rows.last().map_or(0, |r| r.epoch);
+    if let Ok(Some(checkpoint)) = crate::checkpoint::latest_epoch(dir) {
+        if checkpoint > last {
+            let missing = if checkpoint == last + 1 {
+                format!("{checkpoint}")
+            } else {
+                format!("{}–{checkpoint}", last + 1)
+            };
+            progress::warn(
+                &path,
+                &format!(
+                    "epoch range(s) missing at the end (the checkpoint is at epoch {checkpoint})"
+                ),
+                &[missing],
+            );
+        }
+    }
+    Ok(rows)
 }
 
 /// [`summarize`] of a run's progress rows.

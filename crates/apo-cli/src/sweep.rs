@@ -617,6 +617,21 @@ fn run_child(
         use std::os::unix::process::CommandExt;
         cmd.process_group(0);
     }
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt;
+        // SAFETY: prctl is async-signal-safe; it only sets this child's parent-death signal.
+        // A sweep killed outright (SIGKILL, OOM) sends its runs SIGTERM: they checkpoint and
+        // stop instead of training on as orphans.
+        unsafe {
+            cmd.pre_exec(|| {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) == -1 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+    }
     let mut child = cmd.spawn()?;
     lock(running).insert(slot, (child.id(), 0));
     let mut tail: std::collections::VecDeque<String> = std::collections::VecDeque::new();
@@ -712,7 +727,16 @@ pub fn run(
                     match result {
                         Ok((exit, _)) if exit.success() => outcome.finished += 1,
                         Ok(_) | Err(_) if signals.stopped() => {}
-                        Ok((_, tail)) => outcome.failed.push((run.name.clone(), tail)),
+                        Ok((exit, tail)) => {
+                            let tail = if tail.is_empty() {
+                                "(nothing on stderr)".to_string()
+                            } else {
+                                tail
+                            };
+                            outcome
+                                .failed
+                                .push((run.name.clone(), format!("{exit}: {tail}")))
+                        }
                         Err(e) => outcome
                             .failed
                             .push((run.name.clone(), format!("cannot start: {e}"))),

@@ -16,7 +16,6 @@ use crate::checkpoint::{self, Shapes, TrainState, Which};
 use crate::config::RunConfig;
 use crate::episodes::EpisodeLog;
 use crate::progress::{self, ProgressRow};
-use crate::run_dir::VIDEOS;
 use crate::tensorboard::{row_scalars, EventWriter};
 use crate::video::{EpochVideos, TENSORBOARD_VIDEO_BYTES};
 
@@ -116,6 +115,10 @@ pub fn train<B: Backend>(
         threads,
         ref comm,
     } = *launch;
+    if comm.rank() == 0 && resume {
+        // what a process stopped mid-write left (the caller holds the run's lock)
+        crate::run_dir::remove_stale_temps(run_dir)?;
+    }
     let mut trainer = Trainer::<B, _, _>::mlp(config.train.clone(), device, threads)?;
     trainer
         .learner_mut()
@@ -206,7 +209,7 @@ pub fn train<B: Backend>(
     let mut videos = if writer {
         let videos = EpochVideos::new(config, run_dir)?;
         if videos.is_some() {
-            crate::run_dir::claim_new(run_dir, &[VIDEOS])?;
+            crate::run_dir::own_videos(run_dir)?;
         }
         videos
     } else {

@@ -68,28 +68,81 @@ const STDERR_KEPT: usize = 4096;
 /// `ffmpeg` is not on the PATH (with how to install it, and that a `.gif` needs nothing), it
 /// cannot be started (the OS's error), or it exits with a failure (its status and stderr).
 pub fn check_ffmpeg() -> anyhow::Result<()> {
-    let output = match Command::new("ffmpeg")
+    let mut child = match Command::new("ffmpeg")
         .arg("-version")
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
-        .output()
+        .spawn()
     {
-        Ok(output) => output,
+        Ok(child) => child,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!(
             "an .mp4 needs ffmpeg, which is not on the PATH (Debian: apt-get install ffmpeg); \
              or name a .gif, which needs nothing"
         ),
         Err(e) => return Err(e).context("cannot start ffmpeg"),
     };
-    if !output.status.success() {
+    let stderr = read_in_background(child.stderr.take());
+    let deadline = Instant::now() + FFMPEG_TIMEOUT;
+    let status = loop {
+        match child.try_wait().context("cannot wait for ffmpeg")? {
+            Some(status) => break status,
+            None if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(20)),
+            None => {
+                let _ = child.kill();
+                let _ = child.wait();
+                bail!(
+                    "`ffmpeg -version` did not answer within {} s; it was stopped",
+                    FFMPEG_TIMEOUT.as_secs()
+                );
+            }
+        }
+    };
+    if !status.success() {
         bail!(
-            "`ffmpeg -version` failed ({}): {}",
-            output.status,
-            tail(&output.stderr)
+            "`ffmpeg -version` failed ({status}): {}",
+            kept_tail(&stderr)
         );
     }
     Ok(())
+}
+
+/// The end of a child's output, kept by a thread that reads it to its end, and whether it has
+/// ended.
+type Kept = Arc<(Mutex<Vec<u8>>, AtomicBool)>;
+
+/// Reads `pipe` to its end on a thread of its own (never joined: a pipe held open by a
+/// grandchild cannot hold apo), keeping the last [`STDERR_KEPT`] bytes.
+fn read_in_background(pipe: Option<std::process::ChildStderr>) -> Kept {
+    let kept: Kept = Arc::new((Mutex::new(Vec::new()), AtomicBool::new(false)));
+    let shared = Arc::clone(&kept);
+    std::thread::spawn(move || {
+        if let Some(mut pipe) = pipe {
+            let mut chunk = [0u8; 4096];
+            while let Ok(n) = pipe.read(&mut chunk) {
+                if n == 0 {
+                    break;
+                }
+                if let Ok(mut kept) = shared.0.lock() {
+                    kept.extend_from_slice(&chunk[..n]);
+                    let excess = kept.len().saturating_sub(STDERR_KEPT);
+                    kept.drain(..excess);
+                }
+            }
+        }
+        shared.1.store(true, Ordering::Release);
+    });
+    kept
+}
+
+/// The kept end of a child's output, once it has ended (waiting at most a second after the
+/// child's exit for the last of it).
+fn kept_tail(kept: &Kept) -> String {
+    let deadline = Instant::now() + Duration::from_secs(1);
+    while !kept.1.load(Ordering::Acquire) && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    kept.0.lock().map(|k| tail(&k)).unwrap_or_default()
 }
 
 /// The last [`STDERR_KEPT`] bytes of a child's stderr, as text.
@@ -115,14 +168,14 @@ struct Ffmpeg {
     written: mpsc::Receiver<std::io::Result<()>>,
     in_flight: usize,
     /// The end of ffmpeg's stderr so far, and whether it has ended.
-    stderr: Arc<(Mutex<Vec<u8>>, AtomicBool)>,
+    stderr: Kept,
     /// Whether the child has been waited for.
     reaped: bool,
 }
 
 impl Ffmpeg {
+    /// Starts ffmpeg encoding into `tmp` (after [`check_ffmpeg`]).
     fn spawn(tmp: &Path, width: u32, height: u32, fps: u32) -> anyhow::Result<Ffmpeg> {
-        check_ffmpeg()?;
         let mut child = Command::new("ffmpeg")
             .args(["-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo"])
             .args(["-pix_fmt", "rgb24", "-s", &format!("{width}x{height}")])
@@ -143,7 +196,7 @@ impl Ffmpeg {
             .stderr(Stdio::piped())
             .spawn()
             .context("cannot start ffmpeg")?;
-        let (Some(mut stdin), Some(mut err)) = (child.stdin.take(), child.stderr.take()) else {
+        let (Some(mut stdin), Some(err)) = (child.stdin.take(), child.stderr.take()) else {
             let _ = child.kill();
             let _ = child.wait();
             bail!("ffmpeg started without its pipes");
@@ -160,22 +213,7 @@ impl Ffmpeg {
             }
             // dropping stdin closes ffmpeg's input
         });
-        let stderr = Arc::new((Mutex::new(Vec::new()), AtomicBool::new(false)));
-        let kept = Arc::clone(&stderr);
-        std::thread::spawn(move || {
-            let mut chunk = [0u8; 4096];
-            while let Ok(n) = err.read(&mut chunk) {
-                if n == 0 {
-                    break;
-                }
-                if let Ok(mut kept) = kept.0.lock() {
-                    kept.extend_from_slice(&chunk[..n]);
-                    let excess = kept.len().saturating_sub(STDERR_KEPT);
-                    kept.drain(..excess);
-                }
-            }
-            kept.1.store(true, Ordering::Release);
-        });
+        let stderr = read_in_background(Some(err));
         Ok(Ffmpeg {
             child,
             frames: Some(frames),
@@ -226,18 +264,9 @@ impl Ffmpeg {
         Ok(())
     }
 
-    /// The end of ffmpeg's stderr, once it has ended (waiting at most a second after the
-    /// child's exit for the last of it).
+    /// The end of ffmpeg's stderr, once it has ended.
     fn stderr_tail(&self) -> String {
-        let deadline = Instant::now() + Duration::from_secs(1);
-        while !self.stderr.1.load(Ordering::Acquire) && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        self.stderr
-            .0
-            .lock()
-            .map(|kept| tail(&kept))
-            .unwrap_or_default()
+        kept_tail(&self.stderr)
     }
 
     /// Stops ffmpeg; the error says `what` happened, how ffmpeg exited and what it wrote on
@@ -342,6 +371,10 @@ impl VideoWriter {
         let (Ok(w), Ok(h)) = (w, h) else {
             bail!("a video's sides are at most 65535 pixels, not {width}x{height}");
         };
+        if format == Format::Mp4 {
+            // before any file is made
+            check_ffmpeg()?;
+        }
         let (tmp, file) = atomic::create_temp(atomic::parent(path), &name).with_context(|| {
             format!("cannot create a file in {}", atomic::parent(path).display())
         })?;
@@ -444,6 +477,14 @@ impl VideoWriter {
             }
             Some(Sink::Mp4(ffmpeg)) => {
                 ffmpeg.finish()?;
+                let written = std::fs::metadata(&self.tmp).map_or(0, |m| m.len());
+                if written == 0 {
+                    bail!(
+                        "ffmpeg exited with success but wrote nothing to {} ({} frames given); the video was not written",
+                        self.tmp.display(),
+                        self.frames
+                    );
+                }
                 atomic::sync_file(&self.tmp)
                     .with_context(|| format!("cannot sync {}", self.tmp.display()))?;
             }

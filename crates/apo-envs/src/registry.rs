@@ -219,6 +219,15 @@ pub fn spec(name: &str) -> Result<EnvSpec, EnvError> {
     lookup(name).and_then(|member| spec_of(&member))
 }
 
+/// The registered name of the environment `name` names (`CartPole` and `cartpole-v1` are
+/// `CartPole-v1`), without building it.
+///
+/// # Errors
+/// [`EnvError::Unknown`] with suggestions if no environment matches.
+pub fn canonical_name(name: &str) -> Result<String, EnvError> {
+    lookup(name).map(|member| member.name.clone())
+}
+
 /// Builds the environment registered as `name`: the bare environment, inside
 /// [`RescaleAction`](crate::RescaleAction) if its actions are a box, inside
 /// [`TimeLimit`](crate::TimeLimit).

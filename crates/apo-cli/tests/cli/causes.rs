@@ -80,6 +80,23 @@ fn ffmpeg_failures_are_reported_with_exit_status_and_stderr_and_a_stalled_one_is
         "{:?}",
         start.elapsed()
     );
+    // one whose `-version` never answers is stopped too, before any file is made
+    let mute = fake_ffmpeg(&tmp.path().join("mute"), "sleep 60");
+    let start = Instant::now();
+    let err = render(&mute);
+    assert!(err.contains("did not answer within 20 s"), "{err}");
+    assert!(
+        start.elapsed() < Duration::from_secs(50),
+        "{:?}",
+        start.elapsed()
+    );
+    // one that reads every frame, exits 0 and writes nothing: no empty video
+    let empty = fake_ffmpeg(
+        &tmp.path().join("empty"),
+        "[ \"$1\" = -version ] && exit 0\ncat > /dev/null\nexit 0",
+    );
+    let err = render(&empty);
+    assert!(err.contains("wrote nothing"), "{err}");
     let left: Vec<_> = std::fs::read_dir(tmp.path())
         .expect("ls")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
@@ -89,16 +106,52 @@ fn ffmpeg_failures_are_reported_with_exit_status_and_stderr_and_a_stalled_one_is
 }
 
 #[test]
+fn a_run_missing_its_checkpoints_or_edited_to_another_task_is_named_so() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    super::train(&run, "ppo", &[]);
+    // another task with other sizes: the key is named, not only the networks
+    let config = std::fs::read_to_string(run.join("config.toml")).expect("read");
+    std::fs::write(
+        run.join("config.toml"),
+        config.replace("env = \"CartPole-v1\"", "env = \"Acrobot-v1\""),
+    )
+    .expect("write");
+    for args in [
+        vec!["eval", "--run", path(&run)],
+        vec!["train", "--resume", path(&run), "--epochs", "4", "--quiet"],
+    ] {
+        let err = fails(&args);
+        assert!(
+            err.contains("env") && err.contains("Acrobot-v1"),
+            "{args:?}: {err}"
+        );
+    }
+    std::fs::write(run.join("config.toml"), config).expect("restore");
+    // the checkpoints removed under a recorded run
+    std::fs::remove_dir_all(run.join("checkpoints")).expect("rm");
+    let err = fails(&["eval", "--run", path(&run)]);
+    assert!(
+        err.contains("records 3 epochs: the checkpoints were removed"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_folder_with_a_config_but_no_run_is_named_so_by_eval_render_and_resume() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let folder = tmp.path().join("only-config");
     std::fs::create_dir(&folder).expect("mkdir");
     let config = super::ok(&["config", "--algo", "ppo", "--env", "CartPole-v1"]);
     std::fs::write(folder.join("config.toml"), config).expect("write");
+    let image = folder.join("x.png");
     for args in [
         vec!["eval", "--run", path(&folder)],
         vec!["render", "--run", path(&folder)],
         vec!["train", "--resume", path(&folder)],
+        vec!["summary", path(&folder)],
+        vec!["report", path(&folder)],
+        vec!["plot", path(&folder), "--out", path(&image)],
     ] {
         let err = fails(&args);
         assert!(

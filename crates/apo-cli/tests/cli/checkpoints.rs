@@ -113,7 +113,7 @@ fn damaged_or_foreign_checkpoint_files_are_named() {
     .expect("edit");
     let err = fails(&["eval", "--run", path(&run)]);
     assert!(
-        err.contains("do not fit this run") && err.contains("hidden [64, 64]"),
+        err.contains("hidden = [32] (trained with: [64, 64])"),
         "{err}"
     );
     std::fs::write(run.join("config.toml"), &config).expect("restore");

@@ -27,6 +27,27 @@ pub fn apo(args: &[&str]) -> Output {
         .expect("the apo binary runs")
 }
 
+/// Runs `apo args`, failing the test (after killing it) when it is not done within `secs`
+/// seconds: a command that hangs is a failure, not a stuck test run.
+pub fn apo_within(secs: u64, args: &[&str]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn apo");
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    while child.try_wait().expect("poll apo").is_none() {
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("apo {args:?} still running after {secs} s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().expect("apo's output")
+}
+
 pub fn ok(args: &[&str]) -> String {
     let out = apo(args);
     assert!(

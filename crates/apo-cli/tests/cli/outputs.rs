@@ -306,3 +306,56 @@ fn a_run_that_fails_before_its_first_epoch_leaves_only_what_was_there() {
         "nothing of apo's is left"
     );
 }
+
+#[test]
+fn apo_writes_its_own_run_files_only_where_it_made_them_never_through_a_link() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    // a `videos/` apo did not make: its files are the user's, and no render writes there
+    std::fs::create_dir(run.join("videos")).expect("mkdir");
+    std::fs::write(run.join("videos/render.gif"), "mine").expect("write");
+    let err = fails(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "32",
+        "--height",
+        "24",
+    ]);
+    assert!(
+        err.contains("videos") && err.contains("not made by apo"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(run.join("videos/render.gif")).expect("kept"),
+        b"mine"
+    );
+    // apo's lock and log are never opened through a link
+    let victim = tmp.path().join("victim.txt");
+    std::fs::write(&victim, "precious").expect("write");
+    for own in ["apo.lock", "train.log"] {
+        let file = run.join(own);
+        let _ = std::fs::remove_file(&file);
+        std::os::unix::fs::symlink(&victim, &file).expect("symlink");
+        let err = fails(&["train", "--resume", path(&run), "--epochs", "2", "--quiet"]);
+        assert!(
+            err.contains("symbolic link") && err.contains(own),
+            "{own}: {err}"
+        );
+        assert_eq!(std::fs::read(&victim).expect("kept"), b"precious", "{own}");
+        std::fs::remove_file(&file).expect("rm");
+    }
+    // a link to nothing is an existing output too
+    let dangling = tmp.path().join("d.png");
+    std::os::unix::fs::symlink(tmp.path().join("nothere.png"), &dangling).expect("symlink");
+    let err = fails(&["plot", path(&run), "--out", path(&dangling)]);
+    assert!(err.contains("exists") && err.contains("--force"), "{err}");
+    // a long name (the temporary file's name is cut to fit)
+    let long = tmp.path().join(format!("{}.png", "c".repeat(245)));
+    ok(&["plot", path(&run), "--out", path(&long)]);
+    assert!(long.is_file());
+}

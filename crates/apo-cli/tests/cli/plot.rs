@@ -2,14 +2,12 @@
 //! legend placement, smoothing and errors. The figures are SVG so that their text can be read.
 
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
 
 use apo_cli::progress::{self, ProgressRow};
 use apo_cli::RunConfig;
 use apo_core::Algorithm;
 
-use super::{fails, ok, path};
+use super::{apo_within, fails, ok, path};
 
 /// An epoch's row with these returns (mean, min, max) after `env_steps` steps.
 pub fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> ProgressRow {
@@ -70,26 +68,6 @@ fn run(dir: &Path, algo: Algorithm, env: &str, rows: &[ProgressRow]) {
     progress::write(&dir.join("progress.csv"), rows).expect("write progress.csv");
 }
 
-/// Runs `apo args`, failing the test (after killing it) if it is not done within a minute.
-fn apo_within_a_minute(args: &[&str]) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_apo"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn apo");
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while child.try_wait().expect("poll apo").is_none() {
-        if Instant::now() > deadline {
-            child.kill().expect("kill apo");
-            child.wait().expect("reap apo");
-            panic!("apo {args:?} still running after 60 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    child.wait_with_output().expect("apo's output")
-}
-
 /// The texts of an SVG figure with the x coordinate of their anchor.
 fn texts(svg: &Path) -> Vec<(f64, String)> {
     let svg = std::fs::read_to_string(svg).expect("read the svg");
@@ -131,7 +109,7 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
             row(5, 5000, 40.0, 30.0, 50.0),
         ],
     );
-    let out = apo_within_a_minute(&["plot", path(&odd), "--out", figure, "--force"]);
+    let out = apo_within(60, &["plot", path(&odd), "--out", figure, "--force"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(
@@ -156,7 +134,10 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
         "Hopper",
         &[row(1, 1000, 1e308, 1e308, 1e308)],
     );
-    let out = apo_within_a_minute(&["plot", path(&low), path(&high), "--out", figure, "--force"]);
+    let out = apo_within(
+        60,
+        &["plot", path(&low), path(&high), "--out", figure, "--force"],
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
@@ -180,7 +161,7 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
                 row(2, 2000, returns[1], returns[1], returns[1]),
             ],
         );
-        let out = apo_within_a_minute(&["plot", path(&dir), "--out", figure, "--force"]);
+        let out = apo_within(60, &["plot", path(&dir), "--out", figure, "--force"]);
         assert!(
             out.status.success(),
             "{name}: {}",
@@ -196,7 +177,7 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
         "CartPole-v1",
         &[row(1, 1000, f64::NAN, f64::NAN, f64::INFINITY)],
     );
-    let out = apo_within_a_minute(&["plot", path(&none), "--out", figure, "--force"]);
+    let out = apo_within(60, &["plot", path(&none), "--out", figure, "--force"]);
     assert!(!out.status.success());
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("no completed episode with a finite return")

@@ -148,27 +148,6 @@ fn ranges_are_read_from_the_documentation() {
     assert_eq!(range("a switch; true/false"), None);
 }
 
-/// Runs `apo args`; kills it and fails after 30 s (a count without a bound would run on).
-fn apo_bounded(args: &[&str]) -> std::process::Output {
-    use std::process::{Command, Stdio};
-    use std::time::{Duration, Instant};
-    let mut child = Command::new(env!("CARGO_BIN_EXE_apo"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn apo");
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while child.try_wait().expect("poll").is_none() {
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            panic!("apo {args:?} still running after 30 s: the value has no bound");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().expect("output")
-}
-
 #[test]
 fn every_count_flag_refuses_the_largest_integer_and_one_past_it_naming_the_flag() {
     let flags: &[(&[&str], &str)] = &[
@@ -215,13 +194,17 @@ fn every_count_flag_refuses_the_largest_integer_and_one_past_it_naming_the_flag(
             let mut args: Vec<&str> = command.to_vec();
             let given = format!("{flag}={value}");
             args.push(&given);
-            let out = apo_bounded(&args);
+            let out = apo_within(30, &args);
             let err = String::from_utf8_lossy(&out.stderr);
             assert!(!out.status.success(), "{args:?} was accepted");
             assert!(!err.contains("panicked"), "{args:?}: {err}");
             assert!(
                 err.contains(flag),
                 "{args:?}: the error does not name {flag}: {err}"
+            );
+            assert!(
+                err.contains("is not in"),
+                "{args:?}: the error does not give the range: {err}"
             );
         }
     }
@@ -472,4 +455,22 @@ fn memory_is_checked_before_anything_is_created() {
     ]);
     assert!(err.contains("GiB of memory"), "{err}");
     assert!(!dir.exists(), "no directory is left behind");
+}
+
+#[test]
+fn a_key_set_twice_and_a_list_toml_cannot_hold_are_refused() {
+    for sets in [["seed=1", "seed=2"], ["algo.k=1", "algo.apo.k=2"]] {
+        let out = apo(&["config", "--set", sets[0], "--set", sets[1]]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains("set one key twice"),
+            "{err}"
+        );
+    }
+    let out = apo(&["config", "--set", "hidden=[99999999999999999999]"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("hidden") && err.contains("not a TOML list"),
+        "{err}"
+    );
 }

@@ -297,3 +297,82 @@ fn the_same_run_under_two_paths_counts_once_and_gaps_in_epochs_are_named() {
         "{stderr}"
     );
 }
+
+#[test]
+fn reports_keep_epoch_targets_apart_join_aliases_and_name_missing_records() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mixed = tmp.path().join("mixed");
+    let train = |dir: &std::path::Path, env: &str, epochs: &str, seed: &str| {
+        ok(&[
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            env,
+            "--epochs",
+            epochs,
+            "--seed",
+            seed,
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(dir),
+        ]);
+    };
+    train(&mixed.join("CartPole-v1-ppo-s0"), "CartPole", "2", "0");
+    train(&mixed.join("CartPole-v1-ppo-s1"), "cartpole-v1", "3", "1");
+    train(&mixed.join("CartPole-v1-ppo-s2"), "CartPole-v1", "3", "2");
+    let out = apo(&["report", path(&mixed), "--reps", "10"]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("different epoch targets (2, 3)"),
+        "{stderr}"
+    );
+    // one environment (the aliases joined), the 2- and 3-epoch runs apart
+    assert!(
+        !stdout.contains("### cartpole-v1") && !stdout.contains("### CartPole\n"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("epochs=2") && stdout.contains("epochs=3"),
+        "{stdout}"
+    );
+
+    // rows missing at the end are named against the checkpoint
+    let run = mixed.join("CartPole-v1-ppo-s2");
+    let progress = run.join("progress.csv");
+    let text_rows = std::fs::read_to_string(&progress).expect("read");
+    let kept: Vec<&str> = text_rows.lines().take(3).collect();
+    std::fs::write(&progress, kept.join("\n") + "\n").expect("write");
+    let out = apo(&["summary", path(&run)]);
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("missing at the end (the checkpoint is at epoch 3)"),
+        "{stderr}"
+    );
+    // a header that is not apo's is named, with the file's own header
+    std::fs::write(
+        &progress,
+        text_rows.replacen("ep_ret_mean", "ep_ret_avg", 1),
+    )
+    .expect("write");
+    let err = fails(&["summary", path(&run)]);
+    assert!(
+        err.contains("no `ep_ret_mean` column") && err.contains("ep_ret_avg"),
+        "{err}"
+    );
+    // a run without its records: named, in every reader
+    std::fs::remove_file(&progress).expect("rm");
+    for args in [
+        vec!["summary", path(&run)],
+        vec!["plot", path(&run), "--out", path(&tmp.path().join("x.png"))],
+    ] {
+        let err = fails(&args);
+        assert!(
+            err.contains("no progress.csv, although its checkpoint is at epoch 3"),
+            "{args:?}: {err}"
+        );
+    }
+}

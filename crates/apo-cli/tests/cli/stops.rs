@@ -216,3 +216,72 @@ fn a_signal_to_the_sweep_reaches_its_runs_which_checkpoint_and_nothing_is_orphan
     let rows = super::timeless(&run);
     assert_eq!(rows.len(), epoch, "progress.csv agrees with the checkpoint");
 }
+
+/// The processes whose command line mentions `needle` (read from /proc).
+fn processes_with(needle: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").expect("/proc").flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if !name.bytes().all(|b| b.is_ascii_digit()) {
+            continue;
+        }
+        if let Ok(cmdline) = std::fs::read(entry.path().join("cmdline")) {
+            let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+            if cmdline.contains(needle) {
+                found.push(format!("{name}: {cmdline}"));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn the_runs_of_a_sweep_killed_outright_stop_with_it() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let mut sweep = Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args([
+            "sweep",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--seeds",
+            "0",
+            "--epochs",
+            "100000",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(&out),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn the sweep");
+    let run = out.join("CartPole-v1-ppo-s0");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !run.join("checkpoints/latest").is_dir() {
+        assert!(Instant::now() < deadline, "the sweep's run did not start");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(
+        !processes_with(path(&run)).is_empty(),
+        "the run is seen running"
+    );
+    sweep.kill().expect("SIGKILL the sweep");
+    sweep.wait().expect("reap the sweep");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let left = processes_with(path(&run));
+        if left.is_empty() {
+            break;
+        }
+        assert!(Instant::now() < deadline, "orphaned runs: {left:?}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // it stopped as a signalled run does, its checkpoint whole
+    assert!(run.join("checkpoints/latest").is_dir());
+    ok(&["eval", "--run", path(&run), "--episodes", "1"]);
+}

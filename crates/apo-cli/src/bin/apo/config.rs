@@ -31,6 +31,7 @@ pub struct ConfigArgs {
 }
 
 pub fn run(args: ConfigArgs) -> anyhow::Result<()> {
+    apo_cli::config::check_repeated_sets(&args.sets)?;
     let config = match &args.run {
         Some(run) => RunConfig::load(&run.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", run.display()))?,

@@ -11,7 +11,7 @@ pub struct EvalArgs {
     #[arg(long)]
     run: PathBuf,
     /// Number of episodes; 1..=1000000.
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    #[arg(long, default_value_t = 10, value_parser = apo_cli::input::count::<u64>(1, 1_000_000))]
     episodes: u64,
     /// Act with the mean (Gaussian) or most likely (categorical) action.
     #[arg(long)]

@@ -14,7 +14,7 @@ pub struct PlotArgs {
     #[arg(long)]
     force: bool,
     /// Moving average over this many epochs (1: none); 1..=100000.
-    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
+    #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<usize>(1, 100_000))]
     smooth: usize,
     /// Plot this numeric progress.csv column instead of the returns (e.g. kl,
     /// ls_rejected_objective, bias, min_j_sq_on).

@@ -11,7 +11,7 @@ pub struct StatsArgs {
     /// CSV with the columns `algorithm,task,score`, one row per run (e.g. normalized scores).
     scores: PathBuf,
     /// Bootstrap resamples of each interval; 1..=10000000.
-    #[arg(long, default_value_t = 2000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000_000))]
+    #[arg(long, default_value_t = 2000, value_parser = apo_cli::input::count::<usize>(1, 10_000_000))]
     reps: usize,
     /// Seed of the bootstrap (the same seed gives the same intervals).
     #[arg(long, default_value_t = 0)]
@@ -38,12 +38,16 @@ fn parse_taus(text: &str) -> anyhow::Result<Vec<f64>> {
     };
     match parsed {
         Some(((low, high), n))
-            if low.is_finite() && high.is_finite() && low <= high && (1..=100_000).contains(&n) =>
+            if low.is_finite()
+                && high.is_finite()
+                && (high - low).is_finite()
+                && low <= high
+                && (1..=100_000).contains(&n) =>
         {
             Ok(stats::linspace(low, high, n))
         }
         _ => anyhow::bail!(
-            "--taus expects LOW:HIGH:N with LOW ≤ HIGH finite and 1 ≤ N ≤ 100000, got `{text}`"
+            "--taus expects LOW:HIGH:N with LOW ≤ HIGH finite, HIGH − LOW finite (|LOW|, |HIGH| < 8.9e307) and 1 ≤ N ≤ 100000, got `{text}`"
         ),
     }
 }

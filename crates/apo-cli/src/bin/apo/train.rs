@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use apo_cli::config::{BackendKind, Preset, RunConfig};
 use apo_cli::progress::ProgressRow;
 use apo_cli::run_dir::{self, NewRunDir, RunLock};
@@ -39,20 +39,20 @@ pub struct TrainArgs {
     #[arg(long, value_enum)]
     preset: Option<Preset>,
     /// Seed [config: seed; default 0; 0..=9223372036854775807].
-    #[arg(long, value_parser = clap::value_parser!(u64).range(0..=i64::MAX as u64))]
+    #[arg(long, value_parser = apo_cli::input::count::<u64>(0, i64::MAX as u64))]
     seed: Option<u64>,
     /// Number of epochs [config: epochs; default 200]; with --resume, the run's new target; 1..=1000000000.
-    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_EPOCHS as u64))]
+    #[arg(long, value_parser = apo_cli::input::count::<usize>(1, apo_train::config::MAX_EPOCHS as u64))]
     epochs: Option<usize>,
     /// Environment steps per epoch [config: steps_per_epoch; default 30000]; 1..=100000000.
-    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
+    #[arg(long, value_parser = apo_cli::input::count::<usize>(1, apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
     /// Environments stepped together [config: num_envs; default 1]; 1..=65536.
-    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=apo_train::config::MAX_NUM_ENVS as u64))]
+    #[arg(long, value_parser = apo_cli::input::count::<usize>(1, apo_train::config::MAX_NUM_ENVS as u64))]
     num_envs: Option<usize>,
     /// Threads that step the environments (0: the cores available); results do not depend
     /// on it, so it may change on --resume; 0..=1024.
-    #[arg(long, default_value_t = 0, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
+    #[arg(long, default_value_t = 0, value_parser = apo_cli::input::count::<usize>(0, 1024))]
     threads: usize,
     /// Write a checkpoint every N epochs [config: checkpoint_every; default 1].
     #[arg(long, value_name = "N")]
@@ -63,8 +63,12 @@ pub struct TrainArgs {
     /// Override a config key, e.g. --set algo.k=5 (repeatable; see `apo config`).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
-    /// Continue the run in this directory from its last checkpoint (--epochs may extend it).
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["algo", "env", "config", "preset", "out", "force"])]
+    /// Continue the run in this directory from its last checkpoint with its own config.toml
+    /// (--epochs may extend it; the flags that would change what it learns are refused).
+    #[arg(long, value_name = "DIR", conflicts_with_all = [
+        "algo", "env", "config", "preset", "out", "force", "seed", "steps_per_epoch", "num_envs",
+        "checkpoint_every", "backend", "physics", "sets",
+    ])]
     resume: Option<PathBuf>,
     /// Replace an existing run directory that apo made, removing only the files apo created
     /// in it (anything else in it is kept).
@@ -191,18 +195,6 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
     let mut fresh = None;
     let (config, run_dir, resume, _lock) = match &args.resume {
         Some(dir) => {
-            if args.seed.is_some()
-                || args.steps_per_epoch.is_some()
-                || args.backend.is_some()
-                || args.physics.is_some()
-                || args.num_envs.is_some()
-                || args.checkpoint_every.is_some()
-                || !args.sets.is_empty()
-            {
-                bail!(
-                    "--resume continues a run with its own config.toml; only --epochs may change"
-                );
-            }
             let config_path = dir.join(run_dir::CONFIG);
             let mut config = run_dir::check_resumable(dir)?;
             let lock = writer.then(|| RunLock::acquire(dir)).transpose()?;
@@ -241,6 +233,7 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
                 "--env is required (see `apo list`), or a --config file with an env key",
             )?;
             let spec = apo_envs::registry::spec(&env)?;
+            apo_cli::config::check_repeated_sets(&args.sets)?;
             let flags = args.flags(&env);
             warn_overridden(&flags, &args.sets, args.config.as_deref());
             let mut sets = args.sets.clone();
@@ -462,10 +455,7 @@ fn init_logging(run_dir: Option<&Path>) -> anyhow::Result<()> {
         Some(run_dir) => {
             let path = run_dir.join(run_dir::LOG);
             Some(
-                std::fs::OpenOptions::new()
-                    .create(true)
-                    .append(true)
-                    .open(&path)
+                run_dir::open_own(std::fs::OpenOptions::new().create(true).append(true), &path)
                     .with_context(|| format!("cannot open {}", path.display()))?,
             )
         }
