@@ -46,6 +46,7 @@ pub fn create_temp(dir: &Path, name: &str) -> std::io::Result<(PathBuf, std::fs:
         cut -= 1;
     }
     let name = &name[..cut];
+    remove_dead_temps(dir, Some(name));
     loop {
         let n = TEMPS.fetch_add(1, Ordering::Relaxed);
         let tmp = dir.join(format!(".{name}.apo-{}-{n}.tmp", std::process::id()));
@@ -60,6 +61,46 @@ pub fn create_temp(dir: &Path, name: &str) -> std::io::Result<(PathBuf, std::fs:
             Err(e) => return Err(e),
         }
     }
+}
+
+/// The process id in the name of a temporary file apo made (`.<name>.apo-<pid>-<n>.tmp`).
+fn temp_pid(entry: &str) -> Option<i32> {
+    let inner = entry.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (_, ids) = inner.rsplit_once(".apo-")?;
+    let (pid, n) = ids.split_once('-')?;
+    n.parse::<u64>().ok()?;
+    pid.parse().ok()
+}
+
+/// Whether the process `pid` is gone (`kill(pid, 0)` says ESRCH).
+fn gone(pid: i32) -> bool {
+    #[cfg(unix)]
+    {
+        // SAFETY: signal 0 checks for the process only; nothing is sent
+        let found = unsafe { libc::kill(pid, 0) } == 0;
+        !found && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        false
+    }
+}
+
+/// Removes from `dir` the temporary files of apo's form whose process is gone (one stopped by a
+/// second signal or killed mid-write): of the file `name`, or of any file with `None`. A
+/// running apo's temporary files, and every other file, stay.
+pub fn remove_dead_temps(dir: &Path, name: Option<&str>) {
+    let Ok(entries) = crate::removal::entry_names(dir) else {
+        return;
+    };
+    let me = std::process::id() as i32;
+    let dead: Vec<String> = entries
+        .into_iter()
+        .filter(|e| name.is_none_or(|n| is_temp_of(e, n)))
+        .filter(|e| temp_pid(e).is_some_and(|pid| pid != me && gone(pid)))
+        .collect();
+    let _ = crate::removal::remove_created(dir, &dead, false);
 }
 
 /// The name of the file whose temporary file apo made `entry` is
@@ -155,5 +196,35 @@ mod tests {
             b"user's",
             "a file of the old temporary name is left alone by a write"
         );
+    }
+
+    #[test]
+    fn only_the_temporary_files_of_a_process_that_is_gone_are_removed() {
+        let tmp = tempfile::tempdir().expect("tempdir");
+        // a process that has ended and been reaped
+        let mut child = std::process::Command::new("true").spawn().expect("true");
+        let dead = child.id();
+        child.wait().expect("reap");
+        let me = std::process::id();
+        for name in [
+            format!(".x.csv.apo-{dead}-0.tmp"),
+            format!(".x.csv.apo-{me}-0.tmp"),
+            ".x.csv.tmp".to_string(),
+            format!(".y.csv.apo-{dead}-0.tmp"),
+        ] {
+            std::fs::write(tmp.path().join(name), "").expect("write");
+        }
+        remove_dead_temps(tmp.path(), Some("x.csv"));
+        let left = crate::removal::entry_names(tmp.path()).expect("ls");
+        assert_eq!(
+            left,
+            [
+                ".x.csv.apo-".to_string() + &me.to_string() + "-0.tmp",
+                ".x.csv.tmp".to_string(),
+                format!(".y.csv.apo-{dead}-0.tmp"),
+            ]
+        );
+        remove_dead_temps(tmp.path(), None);
+        assert!(!tmp.path().join(format!(".y.csv.apo-{dead}-0.tmp")).exists());
     }
 }

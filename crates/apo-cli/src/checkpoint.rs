@@ -252,8 +252,7 @@ pub fn save<B: Backend>(
     shapes: &Shapes,
     keep: bool,
 ) -> anyhow::Result<()> {
-    let root = dir(run);
-    std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
+    let root = own_root(run)?;
     clear_unfinished(&root)?;
     let tmp = root.join(format!(".tmp-{}", state.run.epoch));
     write_into(&tmp, learner, state, shapes)
@@ -287,8 +286,7 @@ pub fn save_best<B: Backend>(
     state: &TrainState,
     shapes: &Shapes,
 ) -> anyhow::Result<()> {
-    let root = dir(run);
-    std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
+    let root = own_root(run)?;
     let tmp = root.join(".tmp-best");
     clear(&tmp)?;
     write_into(&tmp, learner, state, shapes)
@@ -307,6 +305,9 @@ pub fn save_best<B: Backend>(
 /// `.tmp-keep-<N>`, `.tmp-best`: never read, and the run's lock says no other apo writes
 /// them now).
 fn clear_unfinished(root: &Path) -> anyhow::Result<()> {
+    if crate::removal::is_link(root) {
+        return Ok(());
+    }
     let Ok(entries) = std::fs::read_dir(root) else {
         return Ok(());
     };
@@ -317,6 +318,23 @@ fn clear_unfinished(root: &Path) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `run`'s `checkpoints/`, created if needed; never a symbolic link (apo would otherwise write
+/// and rotate checkpoints in a folder the user did not name).
+///
+/// # Errors
+/// A link, or a folder that cannot be created.
+fn own_root(run: &Path) -> anyhow::Result<PathBuf> {
+    let root = dir(run);
+    if crate::removal::is_link(&root) {
+        bail!(
+            "{} is a symbolic link; apo writes checkpoints only in a folder of its own (remove the link)",
+            root.display()
+        );
+    }
+    std::fs::create_dir_all(&root).with_context(|| format!("cannot create {}", root.display()))?;
+    Ok(root)
 }
 
 /// The folder of the best evaluation's checkpoint in `checkpoints/`.
@@ -385,6 +403,9 @@ fn clear(path: &Path) -> anyhow::Result<()> {
 /// # Errors
 /// When a checkpoint file cannot be removed.
 pub fn remove_checkpoints(root: &Path) -> anyhow::Result<()> {
+    if crate::removal::is_link(root) {
+        return Ok(());
+    }
     let Ok(entries) = std::fs::read_dir(root) else {
         return Ok(());
     };

@@ -1,6 +1,8 @@
 //! The one place where apo deletes anything: [`remove_created`] removes named files and a
-//! folder only once it is empty, so no folder with a user's file in it is ever removed.
-//! Callers name only what apo created (see `run_dir` for how that is known).
+//! folder only once it is empty, so no folder with a user's file in it is ever removed; and it
+//! never follows or removes a symbolic link: apo makes none, so every link is the user's, and
+//! what it points to lies outside what apo may clean. Callers name only what apo created (see
+//! `run_dir` for how that is known).
 
 use std::path::Path;
 
@@ -18,11 +20,21 @@ pub fn remove_created(
     names: &[String],
     remove_dir: bool,
 ) -> anyhow::Result<Vec<String>> {
+    if is_link(dir) {
+        // a link in apo's place: nothing behind it is apo's; the link stays (said as left)
+        let name = dir
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        return Ok(vec![name]);
+    }
     for name in names {
         let path = dir.join(name);
         let Ok(meta) = std::fs::symlink_metadata(&path) else {
             continue;
         };
+        if meta.file_type().is_symlink() {
+            continue;
+        }
         if meta.is_dir() {
             // only an empty one; what is inside was not listed
             let _ = std::fs::remove_dir(&path);
@@ -39,6 +51,12 @@ pub fn remove_created(
         std::fs::remove_dir(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
     }
     Ok(left)
+}
+
+/// Whether `path` is a symbolic link (not followed): apo neither reads through nor removes one
+/// where it cleans up.
+pub(crate) fn is_link(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink())
 }
 
 /// The names of the entries of `dir`, sorted.

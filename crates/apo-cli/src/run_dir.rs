@@ -407,6 +407,8 @@ impl NewRunDir {
                 dir.display()
             );
         }
+        // an apo stopped before it had written anything but its temporary files left only those
+        crate::atomic::remove_dead_temps(dir, None);
         let entries = crate::removal::entry_names(dir)?;
         if entries.iter().all(|n| n == LOCK || n == MARKER) {
             claim_new(dir, &[LOCK])?;
@@ -513,6 +515,9 @@ fn is_video_name(name: &str) -> bool {
 /// # Errors
 /// When a video cannot be removed.
 pub fn remove_videos(root: &Path) -> anyhow::Result<()> {
+    if crate::removal::is_link(root) {
+        return Ok(());
+    }
     let Ok(entries) = std::fs::read_dir(root) else {
         return Ok(());
     };

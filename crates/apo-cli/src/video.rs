@@ -176,7 +176,8 @@ struct Ffmpeg {
 impl Ffmpeg {
     /// Starts ffmpeg encoding into `tmp` (after [`check_ffmpeg`]).
     fn spawn(tmp: &Path, width: u32, height: u32, fps: u32) -> anyhow::Result<Ffmpeg> {
-        let mut child = Command::new("ffmpeg")
+        let mut command = Command::new("ffmpeg");
+        command
             .args(["-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo"])
             .args(["-pix_fmt", "rgb24", "-s", &format!("{width}x{height}")])
             .args(["-r", &fps.to_string(), "-i", "-"])
@@ -193,9 +194,22 @@ impl Ffmpeg {
             .arg(tmp)
             .stdin(Stdio::piped())
             .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .context("cannot start ffmpeg")?;
+            .stderr(Stdio::piped());
+        #[cfg(target_os = "linux")]
+        {
+            use std::os::unix::process::CommandExt;
+            // SAFETY: prctl is async-signal-safe; it only sets the child's parent-death signal:
+            // an apo that exits at once (a second signal) takes its ffmpeg with it
+            unsafe {
+                command.pre_exec(|| {
+                    if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) == -1 {
+                        return Err(std::io::Error::last_os_error());
+                    }
+                    Ok(())
+                });
+            }
+        }
+        let mut child = command.spawn().context("cannot start ffmpeg")?;
         let (Some(mut stdin), Some(err)) = (child.stdin.take(), child.stderr.take()) else {
             let _ = child.kill();
             let _ = child.wait();

@@ -359,3 +359,73 @@ fn apo_writes_its_own_run_files_only_where_it_made_them_never_through_a_link() {
     ok(&["plot", path(&run), "--out", path(&long)]);
     assert!(long.is_file());
 }
+
+#[test]
+fn force_never_follows_a_link_in_a_run_directory() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    // the user's folders, linked in apo's places, hold files of apo's names
+    let mine = tmp.path().join("mine");
+    let clips = tmp.path().join("clips");
+    for (dir, files) in [
+        (&mine, ["state.json", "policy.mpk"]),
+        (&clips, ["render.gif", "epoch-1.gif"]),
+    ] {
+        std::fs::create_dir(dir).expect("mkdir");
+        for f in files {
+            std::fs::write(dir.join(f), "precious").expect("write");
+        }
+    }
+    std::fs::remove_dir_all(run.join("checkpoints/latest")).expect("rm");
+    std::os::unix::fs::symlink(&mine, run.join("checkpoints/latest")).expect("symlink");
+    std::os::unix::fs::symlink(&clips, run.join("videos")).expect("symlink");
+    let _ = apo(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--force",
+        "--out",
+        path(&run),
+    ]);
+    for (dir, files) in [
+        (&mine, ["state.json", "policy.mpk"]),
+        (&clips, ["render.gif", "epoch-1.gif"]),
+    ] {
+        for f in files {
+            assert_eq!(
+                std::fs::read(dir.join(f)).expect("kept"),
+                b"precious",
+                "{f}"
+            );
+        }
+    }
+    // and a linked checkpoints/ is refused, never written through
+    let other = tmp.path().join("other");
+    small(&other, &[]);
+    let outside = tmp.path().join("outside");
+    std::fs::create_dir(&outside).expect("mkdir");
+    std::fs::remove_dir_all(other.join("checkpoints")).expect("rm");
+    std::os::unix::fs::symlink(&outside, other.join("checkpoints")).expect("symlink");
+    let out = apo(&[
+        "train",
+        "--resume",
+        path(&other),
+        "--epochs",
+        "2",
+        "--quiet",
+    ]);
+    assert!(!out.status.success());
+    assert_eq!(
+        std::fs::read_dir(&outside).expect("ls").count(),
+        0,
+        "nothing written through the link"
+    );
+}

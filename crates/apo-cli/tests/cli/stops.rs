@@ -285,3 +285,44 @@ fn the_runs_of_a_sweep_killed_outright_stop_with_it() {
     assert!(run.join("checkpoints/latest").is_dir());
     ok(&["eval", "--run", path(&run), "--episodes", "1"]);
 }
+
+#[test]
+fn the_two_signals_of_gnu_timeout_count_as_one_and_the_run_checkpoints() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    // timeout sends SIGTERM to apo and then to apo's process group: two at once
+    let out = Command::new("timeout")
+        .args([
+            "--preserve-status",
+            "-s",
+            "TERM",
+            "8",
+            env!("CARGO_BIN_EXE_apo"),
+        ])
+        .args([
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "100000",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(&run),
+        ])
+        .output()
+        .expect("timeout runs (coreutils)");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(143), "{stdout}");
+    assert!(stdout.contains("checkpoint written"), "{stdout}");
+    // nothing of the stop is left behind
+    let temps: Vec<String> = std::fs::read_dir(&run)
+        .expect("ls")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(temps.is_empty(), "{temps:?}");
+}

@@ -2,6 +2,9 @@
 //! second, or when its epoch has not ended [`STOP_GRACE`] after the first; a sweep passes each
 //! one on to its running runs and waits for them.
 
+/// Signals that come within this of the first count as the first (see [`Signals::install`]).
+pub const SAME_SIGNAL_WITHIN: Duration = Duration::from_millis(500);
+
 /// How long a training may take after the first SIGINT or SIGTERM to end its epoch and write
 /// its checkpoint; then it stops at once, keeping the last checkpoint on disk (what a second
 /// signal does).
@@ -28,21 +31,35 @@ pub struct Signals {
 }
 
 impl Signals {
-    /// Installs the handlers.
+    /// Installs the handlers: a thread that raises `stop` on the first signal and exits at
+    /// once on a later one — one that comes [`SAME_SIGNAL_WITHIN`] or more after the first
+    /// (GNU `timeout` sends its signal to the child and then to the child's process group:
+    /// two at once, meant as one).
     pub fn install() -> anyhow::Result<Self> {
         use signal_hook::consts::{SIGINT, SIGTERM};
-        use signal_hook::flag;
         let (stop, which) = (
             Arc::new(AtomicBool::new(false)),
             Arc::new(AtomicUsize::new(0)),
         );
-        for signal in [SIGINT, SIGTERM] {
-            // registered first, so it sees `stop` as the previous signal left it
-            flag::register_conditional_shutdown(signal, 128 + signal, Arc::clone(&stop))
-                .and_then(|_| flag::register_usize(signal, Arc::clone(&which), signal as usize))
-                .and_then(|_| flag::register(signal, Arc::clone(&stop)))
-                .context("installing the signal handlers")?;
-        }
+        let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
+            .context("installing the signal handlers")?;
+        let (raised, last) = (Arc::clone(&stop), Arc::clone(&which));
+        std::thread::spawn(move || {
+            let mut first: Option<Instant> = None;
+            for signal in signals.forever() {
+                last.store(signal as usize, Ordering::SeqCst);
+                match first {
+                    None => {
+                        first = Some(Instant::now());
+                        raised.store(true, Ordering::SeqCst);
+                    }
+                    Some(at) if at.elapsed() >= SAME_SIGNAL_WITHIN => {
+                        std::process::exit(i32::from(interrupted_status(signal as usize)))
+                    }
+                    Some(_) => {}
+                }
+            }
+        });
         Ok(Self { stop, which })
     }
 }
