@@ -397,12 +397,13 @@ fn clear(path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Removes every checkpoint apo wrote in the folder `root` (a run's `checkpoints/`) and
-/// `root` itself when nothing else is in it; anything else is kept.
+/// Removes every checkpoint apo wrote in the folder `root` (a run's `checkpoints/`, of a run
+/// that reached epoch `last`) and `root` itself when nothing else is in it; anything else is
+/// kept — a kept `epoch-<N>` only as apo names it (`epoch-000007`) and for 1 ≤ N ≤ `last`.
 ///
 /// # Errors
 /// When a checkpoint file cannot be removed.
-pub fn remove_checkpoints(root: &Path) -> anyhow::Result<()> {
+pub fn remove_checkpoints(root: &Path, last: usize) -> anyhow::Result<()> {
     if crate::removal::is_link(root) {
         return Ok(());
     }
@@ -411,7 +412,16 @@ pub fn remove_checkpoints(root: &Path) -> anyhow::Result<()> {
     };
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
-        if is_checkpoint_name(&name) && entry.file_type().is_ok_and(|t| t.is_dir()) {
+        let kept_by_apo = name
+            .strip_prefix("epoch-")
+            .and_then(|n| n.parse::<usize>().ok())
+            .is_some_and(|epoch| (1..=last).contains(&epoch) && kept_name(epoch) == name);
+        let ours = if name.starts_with("epoch-") {
+            kept_by_apo
+        } else {
+            is_checkpoint_name(&name)
+        };
+        if ours && entry.file_type().is_ok_and(|t| t.is_dir()) {
             let files = checkpoint_files(&entry.path());
             crate::removal::remove_created(&entry.path(), &files, true)?;
         }

@@ -267,11 +267,19 @@ pub fn remove_run_files(
     remove_dir: bool,
 ) -> anyhow::Result<Vec<String>> {
     let listed = created_entries(dir)?.unwrap_or_default();
+    // the last epoch the run reached: apo wrote no epoch's video or checkpoint after it
+    let recorded = crate::progress::read_lenient(&dir.join(PROGRESS), true)
+        .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
+    let checkpointed = crate::checkpoint::latest_epoch(dir)
+        .ok()
+        .flatten()
+        .unwrap_or(0);
+    let last = recorded.max(checkpointed);
     if listed.contains(CHECKPOINTS) {
-        crate::checkpoint::remove_checkpoints(&dir.join(CHECKPOINTS))?;
+        crate::checkpoint::remove_checkpoints(&dir.join(CHECKPOINTS), last)?;
     }
     if listed.contains(VIDEOS) {
-        remove_videos(&dir.join(VIDEOS))?;
+        remove_videos(&dir.join(VIDEOS), last)?;
     }
     let mut names: Vec<String> = listed
         .iter()
@@ -301,7 +309,18 @@ pub fn open_own(options: &mut OpenOptions, path: &Path) -> anyhow::Result<File> 
     }
     #[cfg(unix)]
     {
-        use std::os::unix::fs::OpenOptionsExt;
+        use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
+        // a hard link shares the file with another name: apo would write into the user's file
+        if let Ok(meta) = std::fs::symlink_metadata(path) {
+            if meta.nlink() > 1 {
+                bail!(
+                    "{} has {} names (hard links); apo writes its own files in place only when no \
+                     other name shares them (remove the other link)",
+                    path.display(),
+                    meta.nlink()
+                );
+            }
+        }
         // closes the gap between the check and the open
         options.custom_flags(libc::O_NOFOLLOW);
     }
@@ -498,14 +517,16 @@ impl NewRunDir {
     }
 }
 
-/// The file name of a video apo writes into a run's `videos/`: `epoch-<N>.gif` (training)
-/// or `render.gif` (`apo render`'s default).
-fn is_video_name(name: &str) -> bool {
+/// Whether `name` is a video apo wrote into the `videos/` of a run that reached epoch `last`:
+/// `render.gif` (`apo render`'s default), or `epoch-<N>.gif` exactly as apo writes it (no
+/// leading zero) for an epoch 1 ≤ N ≤ `last`. Any other name is the user's.
+fn is_video_name(name: &str, last: usize) -> bool {
     name == "render.gif"
         || name
             .strip_prefix("epoch-")
             .and_then(|n| n.strip_suffix(".gif"))
-            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|n| n.parse::<usize>().ok().filter(|e| n == e.to_string()))
+            .is_some_and(|epoch| (1..=last).contains(&epoch))
 }
 
 /// Removes the videos apo wrote into the run's video folder `root` (and their temporary
@@ -514,7 +535,7 @@ fn is_video_name(name: &str) -> bool {
 ///
 /// # Errors
 /// When a video cannot be removed.
-pub fn remove_videos(root: &Path) -> anyhow::Result<()> {
+pub fn remove_videos(root: &Path, last: usize) -> anyhow::Result<()> {
     if crate::removal::is_link(root) {
         return Ok(());
     }
@@ -525,7 +546,7 @@ pub fn remove_videos(root: &Path) -> anyhow::Result<()> {
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         let video = crate::atomic::temp_target(&name).unwrap_or(&name);
-        if is_video_name(video) {
+        if is_video_name(video, last) {
             names.push(name);
         }
     }
@@ -548,21 +569,34 @@ mod tests {
             "render.gif",
             "mine.gif",
             "epoch-x.gif",
+            "epoch-03.gif",
+            "epoch-0.gif",
+            "epoch-11.gif",
         ] {
             std::fs::write(root.join(name), b"GIF89a").expect("file");
         }
-        remove_videos(&root).expect("removed");
+        // a run that reached epoch 10: epoch 11, epoch 0 and a leading zero are not apo's
+        remove_videos(&root, 10).expect("removed");
         let mut left: Vec<_> = std::fs::read_dir(&root)
             .expect("kept: it holds files of the user")
             .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
             .collect();
         left.sort();
-        assert_eq!(left, ["epoch-x.gif", "mine.gif"]);
+        assert_eq!(
+            left,
+            [
+                "epoch-0.gif",
+                "epoch-03.gif",
+                "epoch-11.gif",
+                "epoch-x.gif",
+                "mine.gif"
+            ]
+        );
         for name in &left {
             std::fs::remove_file(root.join(name)).expect("remove");
         }
         std::fs::write(root.join("epoch-4.gif"), b"GIF89a").expect("file");
-        remove_videos(&root).expect("removed");
+        remove_videos(&root, 4).expect("removed");
         assert!(!root.exists(), "an emptied folder goes");
     }
 

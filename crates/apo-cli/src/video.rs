@@ -745,8 +745,8 @@ impl EpochVideos {
             height,
             fps: 30,
             every: 4,
-            // videos/epoch-<N>.gif is apo's: a resumed run plays the epoch again
-            replace: true,
+            // an existing epoch-<N>.gif is moved aside first (`record`)
+            replace: false,
         };
         let mut frame = Frame::new(width, height)?;
         let mut obs = vec![0.0; env.observation_space().flat_dim()];
@@ -786,6 +786,21 @@ impl EpochVideos {
         std::fs::create_dir_all(&self.dir)
             .with_context(|| format!("cannot create {}", self.dir.display()))?;
         let out = self.dir.join(format!("epoch-{epoch}.gif"));
+        if std::fs::symlink_metadata(&out).is_ok() {
+            // a file of that name (the user's, or apo's from before an interrupt) is moved
+            // aside, never replaced
+            let aside = (1..)
+                .map(|n| self.dir.join(format!("epoch-{epoch}.gif.kept-{n}")))
+                .find(|p| std::fs::symlink_metadata(p).is_err())
+                .context("no free name to move a video aside")?;
+            std::fs::rename(&out, &aside)
+                .with_context(|| format!("cannot move {} aside", out.display()))?;
+            eprintln!(
+                "warning: {} existed; it was moved to {} before the epoch's video was written",
+                out.display(),
+                aside.display()
+            );
+        }
         let (path, _, result) = render_policy(
             self.env.as_mut(),
             &self.env_name,

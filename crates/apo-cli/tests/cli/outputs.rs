@@ -429,3 +429,70 @@ fn force_never_follows_a_link_in_a_run_directory() {
         "nothing written through the link"
     );
 }
+
+#[test]
+fn force_removes_only_the_epochs_apo_wrote_and_no_file_shared_by_a_hard_link_is_written() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--width",
+        "16",
+        "--height",
+        "16",
+    ]);
+    // names of apo's form that this 1-epoch run never wrote are the user's
+    for name in ["epoch-0.gif", "epoch-01.gif", "epoch-7.gif"] {
+        std::fs::write(run.join("videos").join(name), "mine").expect("write");
+    }
+    std::fs::create_dir(run.join("checkpoints/epoch-000007")).expect("mkdir");
+    std::fs::write(run.join("checkpoints/epoch-000007/state.json"), "mine").expect("write");
+    small(&run, &["--force"]);
+    for name in ["epoch-0.gif", "epoch-01.gif", "epoch-7.gif"] {
+        assert_eq!(
+            std::fs::read(run.join("videos").join(name)).expect("kept"),
+            b"mine",
+            "{name}"
+        );
+    }
+    assert_eq!(
+        std::fs::read(run.join("checkpoints/epoch-000007/state.json")).expect("kept"),
+        b"mine"
+    );
+    // apo's lock and log are never written in place when another name shares them
+    let notes = tmp.path().join("notes.txt");
+    std::fs::write(&notes, "my notes").expect("write");
+    for own in ["apo.lock", "train.log"] {
+        let file = run.join(own);
+        let _ = std::fs::remove_file(&file);
+        std::fs::hard_link(&notes, &file).expect("hard link");
+        let err = fails(&["train", "--resume", path(&run), "--epochs", "2", "--quiet"]);
+        assert!(
+            err.contains("hard links") && err.contains(own),
+            "{own}: {err}"
+        );
+        assert_eq!(std::fs::read(&notes).expect("kept"), b"my notes", "{own}");
+        std::fs::remove_file(&file).expect("rm");
+    }
+    // an epoch video of a name that exists is moved aside, never replaced
+    let filmed = tmp.path().join("filmed");
+    small(&filmed, &["--set", "render_every=1"]);
+    std::fs::write(filmed.join("videos/epoch-2.gif"), "mine").expect("write");
+    ok(&[
+        "train",
+        "--resume",
+        path(&filmed),
+        "--epochs",
+        "2",
+        "--quiet",
+    ]);
+    assert_eq!(
+        std::fs::read(filmed.join("videos/epoch-2.gif.kept-1")).expect("aside"),
+        b"mine"
+    );
+}
