@@ -312,6 +312,13 @@ pub fn open_own(options: &mut OpenOptions, path: &Path) -> anyhow::Result<File> 
         use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
         // a hard link shares the file with another name: apo would write into the user's file
         if let Ok(meta) = std::fs::symlink_metadata(path) {
+            if !meta.is_file() {
+                bail!(
+                    "{} is not a regular file (a pipe, device, socket or folder); apo writes its own \
+                     files in a run directory only as plain files (remove it)",
+                    path.display()
+                );
+            }
             if meta.nlink() > 1 {
                 bail!(
                     "{} has {} names (hard links); apo writes its own files in place only when no \
@@ -321,8 +328,9 @@ pub fn open_own(options: &mut OpenOptions, path: &Path) -> anyhow::Result<File> 
                 );
             }
         }
-        // closes the gap between the check and the open
-        options.custom_flags(libc::O_NOFOLLOW);
+        // closes the gap between the check and the open (a FIFO put there in between is not
+        // waited on)
+        options.custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK);
     }
     Ok(options.open(path)?)
 }

@@ -464,6 +464,26 @@ fn force_removes_only_the_epochs_apo_wrote_and_no_file_shared_by_a_hard_link_is_
         std::fs::read(run.join("checkpoints/epoch-000007/state.json")).expect("kept"),
         b"mine"
     );
+    // nor when they are not plain files (a FIFO would block the open forever)
+    for own in ["apo.lock", "train.log"] {
+        let file = run.join(own);
+        let _ = std::fs::remove_file(&file);
+        let made = std::process::Command::new("mkfifo")
+            .arg(&file)
+            .status()
+            .expect("mkfifo (coreutils)");
+        assert!(made.success());
+        let out = apo_within(
+            60,
+            &["train", "--resume", path(&run), "--epochs", "2", "--quiet"],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains("not a regular file") && err.contains(own),
+            "{own}: {err}"
+        );
+        std::fs::remove_file(&file).expect("rm");
+    }
     // apo's lock and log are never written in place when another name shares them
     let notes = tmp.path().join("notes.txt");
     std::fs::write(&notes, "my notes").expect("write");
