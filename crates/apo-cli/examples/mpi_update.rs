@@ -14,10 +14,10 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
-use apo_cli::config::RunConfig;
-use apo_cli::mpi::Mpi;
 use apo_core::{Algorithm, Learner};
 use apo_envs::VecEnv;
+use apo_train::mpi::Mpi;
+use apo_train::run_config::RunConfig;
 use apo_train::{action_kind, Actor, Collector, HostActor};
 use burn::backend::NdArray;
 use rand::rngs::StdRng;

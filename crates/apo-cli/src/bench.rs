@@ -314,37 +314,38 @@ pub struct EpochSplit {
 
 /// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards),
 /// the environments stepped on `threads` threads, and returns each epoch's time split.
-pub fn epoch(config: &crate::RunConfig, threads: usize) -> anyhow::Result<Vec<EpochSplit>> {
+pub fn epoch(config: &apo_train::RunConfig, threads: usize) -> anyhow::Result<Vec<EpochSplit>> {
     use std::sync::atomic::AtomicBool;
     struct Silent;
-    impl crate::trainer::Observer for Silent {
-        fn epoch(&mut self, _: &crate::progress::ProgressRow, _: usize) {}
+    impl apo_train::run::Observer for Silent {
+        fn epoch(&mut self, _: &apo_train::progress_csv::ProgressRow, _: usize) {}
     }
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.subsec_nanos());
     let dir = std::env::temp_dir().join(format!("apo-bench-epoch-{}-{nanos}", std::process::id()));
-    let prepared = crate::run_dir::NewRunDir::prepare(&dir, false)?;
+    let prepared = apo_train::run_dir::NewRunDir::prepare(&dir, false)?;
     let stop = AtomicBool::new(false);
     let trained = match config.backend {
-        crate::BackendKind::Cpu => crate::trainer::train::<burn::backend::NdArray>(
+        apo_train::BackendKind::Cpu => apo_train::run::train::<burn::backend::NdArray>(
             config,
             &dir,
             &Default::default(),
-            &crate::trainer::Launch::new(threads),
+            &apo_train::run::Launch::new(threads),
             &stop,
             &mut Silent,
         ),
-        crate::BackendKind::Wgpu => crate::trainer::train::<burn::backend::Wgpu>(
+        apo_train::BackendKind::Wgpu => apo_train::run::train::<burn::backend::Wgpu>(
             config,
             &dir,
             &Default::default(),
-            &crate::trainer::Launch::new(threads),
+            &apo_train::run::Launch::new(threads),
             &stop,
             &mut Silent,
         ),
     };
-    let rows = trained.and_then(|_| crate::progress::read(&dir.join(crate::run_dir::PROGRESS)));
+    let rows = trained
+        .and_then(|_| apo_train::progress_csv::read(&dir.join(apo_train::run_dir::PROGRESS)));
     prepared.discard();
     let rows = rows?;
     let mut previous = (0.0, 0u64);

@@ -9,7 +9,6 @@
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 use anyhow::{bail, Context};
 use plotters::coord::types::RangedCoordf64;
@@ -17,10 +16,9 @@ use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use plotters::style::{register_font, FontStyle};
 
-use crate::config::RunConfig;
-use crate::progress::{self, ProgressRow};
+use apo_train::progress_csv::{self, ProgressRow};
+use apo_train::run_config::RunConfig;
 
 /// Options of [`plot`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -43,12 +41,6 @@ impl Default for PlotOptions {
         }
     }
 }
-
-/// Where the font for the plot's text is looked for (Debian's `fonts-dejavu-core`).
-const FONT_PATHS: &[&str] = &[
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-];
 
 /// Image size in pixels.
 const SIZE: (u32, u32) = (1200, 660);
@@ -81,25 +73,6 @@ const PALETTE: [RGBColor; 10] = [
 ];
 /// Color of secondary text and of the legend's line-style samples.
 pub(crate) const GREY: RGBColor = RGBColor(80, 80, 80);
-
-/// Registers the font once per process.
-pub(crate) fn load_font() -> anyhow::Result<()> {
-    static LOADED: OnceLock<Result<(), String>> = OnceLock::new();
-    let register = || -> anyhow::Result<()> {
-        let path = FONT_PATHS.iter().map(PathBuf::from).find(|p| p.exists()).context(
-            "no font for the plot's text: install Debian's fonts-dejavu-core (apt-get install fonts-dejavu-core)",
-        )?;
-        let bytes =
-            std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
-        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-        register_font("sans-serif", FontStyle::Normal, bytes)
-            .map_err(|_| anyhow::anyhow!("{} is not a usable font", path.display()))
-    };
-    LOADED
-        .get_or_init(|| register().map_err(|e| format!("{e:#}")))
-        .clone()
-        .map_err(anyhow::Error::msg)
-}
 
 /// The image formats by file extension.
 enum ImageFormat {
@@ -155,8 +128,8 @@ impl Run {
     fn load(dir: &Path, smooth: usize, column_name: Option<&str>) -> anyhow::Result<Self> {
         let context = || format!("cannot plot the run in {}", dir.display());
         let config = RunConfig::load(&dir.join("config.toml")).with_context(context)?;
-        let rows = crate::run_dir::progress_of(dir)
-            .and_then(|path| progress::read_rows_with_non_finite(&path))
+        let rows = apo_train::run_dir::progress_of(dir)
+            .and_then(|path| progress_csv::read_rows_with_non_finite(&path))
             .with_context(context)?;
         if let Some(name) = column_name {
             let (values, skipped) = named_column(&rows, name, smooth)
@@ -210,8 +183,8 @@ impl Run {
         let runs = dirs
             .iter()
             .map(|dir| {
-                crate::run_dir::progress_of(dir)
-                    .and_then(|path| progress::read_rows_with_non_finite(&path))
+                apo_train::run_dir::progress_of(dir)
+                    .and_then(|path| progress_csv::read_rows_with_non_finite(&path))
                     .with_context(|| format!("cannot plot the run in {}", dir.display()))
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
@@ -781,7 +754,7 @@ pub(crate) fn render_image(
     svg: &dyn Fn(DrawingArea<SVGBackend<'_>, Shift>) -> anyhow::Result<()>,
     bitmap: &dyn Fn(DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
-    load_font()?;
+    apo_train::video::load_font()?;
     let bytes = match ImageFormat::of(out)? {
         ImageFormat::Svg => {
             let mut text = String::new();
@@ -805,7 +778,7 @@ pub(crate) fn render_image(
             png_bytes
         }
     };
-    crate::atomic::write(out, &bytes).with_context(|| format!("cannot write {}", out.display()))
+    apo_train::atomic::write(out, &bytes).with_context(|| format!("cannot write {}", out.display()))
 }
 
 /// Plots groups of runs into `out` (`.png` or `.svg`), one curve set per group `(label,

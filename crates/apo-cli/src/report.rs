@@ -33,11 +33,11 @@ use apo_core::metrics::average_over_epochs;
 use apo_core::Algorithm;
 use rand::{Rng, SeedableRng};
 
-use crate::config::RunConfig;
-use crate::progress;
-use crate::run_dir;
 use crate::stats::{self, Analysis, Comparison, Scores, StratifiedBootstrap};
 use crate::summary::{mean_std, summarize_rows, RunSummary};
+use apo_train::progress_csv;
+use apo_train::run_config::RunConfig;
+use apo_train::run_dir;
 
 /// A value over seeds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -232,8 +232,8 @@ pub fn variant(name: &str, env: &str, algo: Algorithm) -> String {
 
 /// The average of one progress column over the last `last` epochs of a run's rows.
 fn last_average(
-    rows: &[progress::ProgressRow],
-    column: fn(&progress::ProgressRow) -> Option<f64>,
+    rows: &[progress_csv::ProgressRow],
+    column: fn(&progress_csv::ProgressRow) -> Option<f64>,
     last: usize,
 ) -> Option<f64> {
     let values: Vec<f64> = rows.iter().filter_map(column).collect();
@@ -265,7 +265,7 @@ pub fn report(
         let config = RunConfig::load(&dir.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", dir.display()))?;
         // a run is reported with the config it learned with
-        crate::checkpoint::check_bound(dir, &config)
+        apo_train::checkpoint::check_bound(dir, &config)
             .with_context(|| format!("run {}", dir.display()))?;
         targets.insert(
             dir.clone(),
@@ -340,7 +340,7 @@ pub fn report(
             let mut rows =
                 crate::summary::run_rows(dir).with_context(|| format!("run {}", dir.display()))?;
             // the episodes, where the run recorded them, are what its statistics are made of
-            crate::episodes::recompute_rows(&mut rows, dir, k)
+            apo_train::episodes_csv::recompute_rows(&mut rows, dir, k)
                 .with_context(|| format!("run {}", dir.display()))?;
             if rows.last().map_or(0, |r| r.epoch) < target {
                 incomplete += 1;
@@ -1007,14 +1007,14 @@ pub fn write(
         ("report.csv", csv(report)?),
     ] {
         let path = out.join(name);
-        crate::atomic::write(&path, text.as_bytes())
+        apo_train::atomic::write(&path, text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;
         written.push(path);
     }
     if !report.statistics.is_empty() {
         let path = out.join(STATISTICS_JSON);
         let text = serde_json::to_string_pretty(&report.statistics)?;
-        crate::atomic::write(&path, text.as_bytes())
+        apo_train::atomic::write(&path, text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;
         written.push(path);
     }

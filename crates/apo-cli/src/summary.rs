@@ -8,7 +8,7 @@ use std::path::Path;
 
 use apo_core::metrics::average_over_epochs;
 
-use crate::progress;
+use apo_train::progress_csv;
 
 /// The metrics of one run.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,24 +40,24 @@ pub fn summarize(dir: &Path, last: usize) -> anyhow::Result<RunSummary> {
     Ok(summarize_rows(&run_rows(dir)?, last))
 }
 
-/// The rows of the run in `dir`'s `progress.csv` ([`progress::read_rows`], after
-/// [`crate::run_dir::progress_of`]); rows missing at the end — the checkpoint is at a later
+/// The rows of the run in `dir`'s `progress.csv` ([`progress_csv::read_rows`], after
+/// [`apo_train::run_dir::progress_of`]); rows missing at the end — the checkpoint is at a later
 /// epoch than the last row — are named in a warning, as a gap in the middle is.
 ///
 /// # Errors
 /// As those two.
-pub fn run_rows(dir: &Path) -> anyhow::Result<Vec<progress::ProgressRow>> {
-    let path = crate::run_dir::progress_of(dir)?;
-    let rows = progress::read_rows(&path)?;
+pub fn run_rows(dir: &Path) -> anyhow::Result<Vec<progress_csv::ProgressRow>> {
+    let path = apo_train::run_dir::progress_of(dir)?;
+    let rows = progress_csv::read_rows(&path)?;
     let last = rows.last().map_or(0, |r| r.epoch);
-    if let Ok(Some(checkpoint)) = crate::checkpoint::latest_epoch(dir) {
+    if let Ok(Some(checkpoint)) = apo_train::checkpoint::latest_epoch(dir) {
         if checkpoint > last {
             let missing = if checkpoint == last + 1 {
                 format!("{checkpoint}")
             } else {
                 format!("{}–{checkpoint}", last + 1)
             };
-            progress::warn(
+            progress_csv::warn(
                 &path,
                 &format!(
                     "epoch range(s) missing at the end (the checkpoint is at epoch {checkpoint})"
@@ -70,7 +70,7 @@ pub fn run_rows(dir: &Path) -> anyhow::Result<Vec<progress::ProgressRow>> {
 }
 
 /// [`summarize`] of a run's progress rows.
-pub fn summarize_rows(rows: &[progress::ProgressRow], last: usize) -> RunSummary {
+pub fn summarize_rows(rows: &[progress_csv::ProgressRow], last: usize) -> RunSummary {
     let means: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_mean).collect();
     let worst: Vec<f64> = rows.iter().filter_map(|r| r.ep_ret_min).collect();
     let success: Vec<f64> = rows.iter().filter_map(|r| r.success_rate).collect();
@@ -364,7 +364,7 @@ mod tests {
 
     #[test]
     fn the_success_rate_is_averaged_over_the_last_epochs() {
-        let row = |epoch: usize, success_rate: Option<f64>| progress::ProgressRow {
+        let row = |epoch: usize, success_rate: Option<f64>| progress_csv::ProgressRow {
             epoch,
             success_rate,
             ..Default::default()
@@ -373,7 +373,7 @@ mod tests {
         assert_eq!(summarize_rows(&rows, 2).success_last, Some(0.75));
         assert_eq!(summarize_rows(&rows[..1], 2).success_last, Some(0.0));
         assert_eq!(summarize_rows(&[row(1, None)], 2).success_last, None);
-        let risk = |epoch: usize, cvar10: f64| progress::ProgressRow {
+        let risk = |epoch: usize, cvar10: f64| progress_csv::ProgressRow {
             epoch,
             ep_ret_cvar10: Some(cvar10),
             ep_ret_q10: Some(cvar10 + 1.0),

@@ -27,10 +27,10 @@ use anyhow::{bail, Context};
 use apo_core::Algorithm;
 use serde::{Deserialize, Serialize};
 
-use crate::config::{Preset, RunConfig};
-use crate::progress;
-use crate::run_dir;
 use crate::summary::{summarize, RunSummary};
+use apo_train::progress_csv;
+use apo_train::run_config::{Preset, RunConfig};
+use apo_train::run_dir;
 
 /// One axis of the grid: a config key and its values (TOML syntax, as for `--set`).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -61,7 +61,7 @@ impl Axis {
         let key = key.trim().to_string();
         let mut seen: Vec<(toml::Value, &str)> = Vec::new();
         for v in &values {
-            let parsed = crate::config::parse_value(v)
+            let parsed = apo_train::run_config::parse_value(v)
                 .map_err(|message| anyhow::anyhow!("--grid {key}: {message}"))?;
             if let Some((_, first)) = seen.iter().find(|(p, _)| same_value(p, &parsed)) {
                 bail!("--grid {key}: the value `{v}` is given twice (as `{first}` and `{v}`)");
@@ -239,7 +239,7 @@ fn parse_preset(name: &Option<String>) -> anyhow::Result<Option<Preset>> {
 /// Whether `key` is a setting of `algo` (a bad `value` for a key it has still counts: the
 /// run's config check names it).
 fn applies(algo: Algorithm, key: &str, value: &str) -> bool {
-    use crate::config::ConfigFileError as E;
+    use apo_train::run_config::ConfigFileError as E;
     !matches!(
         RunConfig::build(algo, "", None, &[format!("{key}={value}")]),
         Err(E::UnknownKey { .. } | E::NotOfAlgorithm { .. } | E::OtherAlgorithm { .. })
@@ -288,7 +288,7 @@ pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<
         );
     }
     if let Some(config) = &spec.config {
-        if let Some(section) = crate::config::file_algorithm(config)? {
+        if let Some(section) = apo_train::run_config::file_algorithm(config)? {
             if let Some(other) = algos.iter().find(|a| **a != section) {
                 bail!(
                     "--config {} holds the section [algo.{section}], which the runs of {other} cannot use: a sweep \
@@ -450,7 +450,7 @@ pub enum RunStatus {
 /// Epochs recorded in `dir/progress.csv` (0 without one, or when it cannot be read): for the
 /// progress bar only.
 pub fn epochs_done(dir: &Path) -> usize {
-    progress::read_lenient(&dir.join(run_dir::PROGRESS), true).map_or(0, |p| p.rows.len())
+    progress_csv::read_lenient(&dir.join(run_dir::PROGRESS), true).map_or(0, |p| p.rows.len())
 }
 
 /// The status of the run in `dir` whose target is `epochs` epochs, decided by its checkpoint;
@@ -463,12 +463,12 @@ pub fn status(dir: &Path, epochs: usize) -> anyhow::Result<RunStatus> {
     if std::fs::symlink_metadata(dir).is_err() {
         return Ok(RunStatus::New);
     }
-    Ok(match crate::checkpoint::latest_epoch(dir)? {
+    Ok(match apo_train::checkpoint::latest_epoch(dir)? {
         Some(done) if done >= epochs => RunStatus::Finished,
         Some(done) if done > 0 => RunStatus::Interrupted { done },
         Some(_) => RunStatus::Failed,
         None => {
-            let recorded = progress::read_lenient(&dir.join(run_dir::PROGRESS), false)
+            let recorded = progress_csv::read_lenient(&dir.join(run_dir::PROGRESS), false)
                 .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
             if recorded >= epochs && dir.join(run_dir::CONFIG).is_file() {
                 RunStatus::Finished
@@ -516,7 +516,7 @@ fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
         );
     }
     if std::fs::symlink_metadata(&path).is_ok() {
-        let old = crate::input::read_text(&path, "sweep record", crate::input::SMALL_FILE)?;
+        let old = apo_train::input::read_text(&path, "sweep record", apo_train::input::SMALL_FILE)?;
         let old: SweepSpec = toml::from_str(&old)
             .with_context(|| format!("{} is not a sweep record", path.display()))?;
         if &old != spec {
@@ -534,8 +534,8 @@ fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
             out.display()
         );
     }
-    crate::input::prepare_output_dir(out, "--out")?;
-    crate::atomic::write(&path, text.as_bytes())
+    apo_train::input::prepare_output_dir(out, "--out")?;
+    apo_train::atomic::write(&path, text.as_bytes())
         .with_context(|| format!("cannot write {}", path.display()))
 }
 

@@ -12,13 +12,13 @@ use apo_theory::practical;
 #[derive(Debug, Clone, clap::Args)]
 pub struct TheoryArgs {
     /// States of each random MDP; 1..=64.
-    #[arg(long, default_value_t = 5, value_parser = crate::input::count::<u64>(1, 64))]
+    #[arg(long, default_value_t = 5, value_parser = crate::flags::count::<u64>(1, 64))]
     pub states: u64,
     /// Actions of each random MDP; 1..=16.
-    #[arg(long, default_value_t = 3, value_parser = crate::input::count::<u64>(1, 16))]
+    #[arg(long, default_value_t = 3, value_parser = crate::flags::count::<u64>(1, 16))]
     pub actions: u64,
     /// Random MDPs (seeds 0..N) for checks (a), (b) and (d); 1..=1000000.
-    #[arg(long, default_value_t = 1000, value_parser = crate::input::count::<u64>(1, 1_000_000))]
+    #[arg(long, default_value_t = 1000, value_parser = crate::flags::count::<u64>(1, 1_000_000))]
     pub seeds: u64,
     /// Discount γ ∈ [0, 0.999] (check (d) samples episodes of about ln(1e-9)/ln γ steps).
     #[arg(long, default_value_t = 0.9)]
@@ -30,7 +30,7 @@ pub struct TheoryArgs {
     #[arg(long, default_value_t = 1.0)]
     pub temperature: f64,
     /// Candidates per distance from π_j (distances 1e-3 … 3 in logit space); 1..=1000.
-    #[arg(long, default_value_t = 2, value_parser = crate::input::count::<u64>(1, 1000))]
+    #[arg(long, default_value_t = 2, value_parser = crate::flags::count::<u64>(1, 1000))]
     pub draws: u64,
     /// How ‖μᵀ‖∞ is read: the induced norm of the row vector (Σ μ = 1) or the largest entry.
     #[arg(long, value_parser = ["induced", "max-entry"], default_value = "induced")]
@@ -39,29 +39,29 @@ pub struct TheoryArgs {
     #[arg(long, value_parser = ["paper", "absolute"], default_value = "paper")]
     pub cross_term: String,
     /// MDPs (seeds 0..N) for check (c), the iterations; 0..=100000.
-    #[arg(long, default_value_t = 20, value_parser = crate::input::count::<u64>(0, 100_000))]
+    #[arg(long, default_value_t = 20, value_parser = crate::flags::count::<u64>(0, 100_000))]
     pub iteration_seeds: u64,
     /// Policy updates per run in check (c); 1..=10000.
-    #[arg(long, default_value_t = 10, value_parser = crate::input::count::<u64>(1, 10_000))]
+    #[arg(long, default_value_t = 10, value_parser = crate::flags::count::<u64>(1, 10_000))]
     pub iterations: u64,
     /// Gradient-ascent steps per update in check (c); 1..=10000.
-    #[arg(long, default_value_t = 20, value_parser = crate::input::count::<u64>(1, 10_000))]
+    #[arg(long, default_value_t = 20, value_parser = crate::flags::count::<u64>(1, 10_000))]
     pub ascent_steps: u64,
     /// The trust region δ of the practical surrogate in checks (c) and (e), in (0, 1].
     #[arg(long, default_value_t = 0.02)]
     pub max_kl: f64,
     /// MDPs (seeds 0..N) for check (d), Selberg's inequality; 0..=100000.
-    #[arg(long, default_value_t = 50, value_parser = crate::input::count::<u64>(0, 100_000))]
+    #[arg(long, default_value_t = 50, value_parser = crate::flags::count::<u64>(0, 100_000))]
     pub selberg_seeds: u64,
     /// Sampled episodes per MDP in check (d); 1..=100000000.
-    #[arg(long, default_value_t = 20_000, value_parser = crate::input::count::<u64>(1, 100_000_000))]
+    #[arg(long, default_value_t = 20_000, value_parser = crate::flags::count::<u64>(1, 100_000_000))]
     pub episodes: u64,
     /// MDPs (seeds 0..N) for check (e): the practical APO's trust-region step and its
     /// variants, evaluated exactly; 0..=100000.
-    #[arg(long, default_value_t = 50, value_parser = crate::input::count::<u64>(0, 100_000))]
+    #[arg(long, default_value_t = 50, value_parser = crate::flags::count::<u64>(0, 100_000))]
     pub practical_seeds: u64,
     /// Updates per MDP in check (e); 1..=10000.
-    #[arg(long, default_value_t = 10, value_parser = crate::input::count::<u64>(1, 10_000))]
+    #[arg(long, default_value_t = 10, value_parser = crate::flags::count::<u64>(1, 10_000))]
     pub practical_iterations: u64,
     /// Added to every reward in check (e) (a positive offset: positive values, as with the
     /// survival bonus of the locomotion tasks), in [−1e6, 1e6].

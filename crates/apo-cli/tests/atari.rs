@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use apo_cli::progress;
+use apo_train::progress_csv;
 
 fn apo(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_apo"))
@@ -91,7 +91,7 @@ fn trains_resumes_and_evaluates_with_the_paper_configs() {
         args.extend_from_slice(&common);
         ok(&args);
         ok(&["train", "--resume", text(&run), "--epochs", "2", "--quiet"]);
-        let rows = progress::read(&run.join("progress.csv")).expect("progress");
+        let rows = progress_csv::read(&run.join("progress.csv")).expect("progress");
         assert_eq!(rows.len(), 2, "{algo}");
         for row in &rows {
             assert_eq!(row.env_steps, 2500 * row.epoch as u64);
@@ -112,8 +112,8 @@ fn trains_resumes_and_evaluates_with_the_paper_configs() {
         let mut args = vec!["train", "--epochs", "2", "--out", text(&whole)];
         args.extend_from_slice(&common);
         ok(&args);
-        let again = progress::read(&whole.join("progress.csv")).expect("progress");
-        let learning = |r: &progress::ProgressRow| {
+        let again = progress_csv::read(&whole.join("progress.csv")).expect("progress");
+        let learning = |r: &progress_csv::ProgressRow| {
             (
                 r.env_steps,
                 r.episodes,

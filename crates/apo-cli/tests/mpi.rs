@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use apo_cli::progress::{self, ProgressRow};
+use apo_train::progress_csv::{self, ProgressRow};
 
 /// `mpirun -n <ranks> <program> <args>`.
 fn mpirun(ranks: usize, program: &Path, args: &[&str]) -> Output {
@@ -169,7 +169,7 @@ fn train(ranks: usize, dir: &Path, epochs: &str) -> Output {
 
 /// The rows without their wall-clock columns.
 fn timeless(dir: &Path) -> Vec<ProgressRow> {
-    progress::read(&dir.join("progress.csv"))
+    progress_csv::read(&dir.join("progress.csv"))
         .expect("progress.csv")
         .into_iter()
         .map(ProgressRow::timeless)

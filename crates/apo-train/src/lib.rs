@@ -139,13 +139,27 @@
 //! ```
 
 pub mod actor;
+pub mod atomic;
+pub mod checkpoint;
 pub mod config;
+pub mod episodes_csv;
 pub mod error;
 pub mod evaluation;
+pub mod input;
 pub mod metrics;
+#[cfg(feature = "mpi")]
+pub mod mpi;
+pub mod playback;
+pub mod progress_csv;
+pub mod removal;
 pub mod rollout;
+pub mod run;
+pub mod run_config;
+pub mod run_dir;
 pub mod seed;
+pub mod tensorboard;
 pub mod trainer;
+pub mod video;
 
 pub use actor::{Act, Actor, BurnActor, HostActor};
 pub use config::{ActionMapping, EpisodeReset, EvalMetric, TrainConfig};
@@ -153,5 +167,6 @@ pub use error::TrainError;
 pub use evaluation::{Evaluation, Evaluator};
 pub use metrics::{EpisodeRecord, EpochTimes, Phase, ProgressRow};
 pub use rollout::{action_kind, episode_stats, Collector, Episode, Rollout};
+pub use run_config::{BackendKind, RunConfig};
 pub use seed::derive_seed;
 pub use trainer::{Checkpoint, EpochReport, RunState, Trainer};

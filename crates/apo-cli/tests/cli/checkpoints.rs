@@ -276,9 +276,9 @@ fn a_checkpoint_without_its_manifest_or_of_another_manifest_format_is_refused() 
 
 #[test]
 fn a_checkpoint_with_non_finite_parameters_is_refused() {
-    use apo_cli::checkpoint::{self, Which};
-    use apo_cli::config::RunConfig;
     use apo_core::{ActionKind, Learner};
+    use apo_train::checkpoint::{self, Which};
+    use apo_train::run_config::RunConfig;
     use burn::backend::NdArray;
     use burn::module::Module;
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -298,7 +298,7 @@ fn a_checkpoint_with_non_finite_parameters_is_refused() {
         0,
     )
     .expect("learner");
-    let shapes = apo_cli::checkpoint::Shapes::of(&config, 4, action);
+    let shapes = apo_train::checkpoint::Shapes::of(&config, 4, action);
     let from = checkpoint::locate(&run, &Which::Latest)
         .expect("locate")
         .expect("latest");

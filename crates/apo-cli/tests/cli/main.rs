@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use apo_cli::progress::{self, ProgressRow};
+use apo_train::progress_csv::{self, ProgressRow};
 
 mod bound_config;
 mod causes;
@@ -230,7 +230,7 @@ pub fn text(bytes: &[u8]) -> String {
 
 /// The rows without their wall-clock columns.
 pub fn timeless(dir: &Path) -> Vec<ProgressRow> {
-    progress::read(&dir.join("progress.csv"))
+    progress_csv::read(&dir.join("progress.csv"))
         .expect("progress.csv")
         .into_iter()
         .map(ProgressRow::timeless)
@@ -385,7 +385,7 @@ fn evaluation_keeps_the_best_checkpoint_changes_no_training_number_and_resumes_e
         episodes,
         "the resumed run's episode record differs"
     );
-    let records = apo_cli::episodes::read(&whole.join("episodes.csv")).expect("records");
+    let records = apo_train::episodes_csv::read(&whole.join("episodes.csv")).expect("records");
     for row in &rows {
         let of = |phase| {
             records
@@ -395,8 +395,8 @@ fn evaluation_keeps_the_best_checkpoint_changes_no_training_number_and_resumes_e
                 .collect::<Vec<f64>>()
         };
         let (train, eval) = (
-            of(apo_cli::episodes::Phase::Train),
-            of(apo_cli::episodes::Phase::Eval),
+            of(apo_train::episodes_csv::Phase::Train),
+            of(apo_train::episodes_csv::Phase::Eval),
         );
         assert_eq!(train.len(), row.episodes, "epoch {}", row.epoch);
         assert_eq!(eval.len(), 3, "epoch {}", row.epoch);

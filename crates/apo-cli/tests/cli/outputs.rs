@@ -152,7 +152,7 @@ fn an_mp4_without_ffmpeg_is_an_error_and_writes_no_other_file() {
     );
     assert_eq!(entries(&out), ["v.gif"], "nothing written");
     assert_eq!(std::fs::read(out.join("v.gif")).expect("kept"), b"precious");
-    if apo_cli::video::check_ffmpeg().is_ok() {
+    if apo_train::video::check_ffmpeg().is_ok() {
         // with ffmpeg: an MP4 (odd sides padded), and the rule for an existing file
         ok(&args);
         let bytes = std::fs::read(&mp4).expect("the MP4");

@@ -3,9 +3,9 @@
 
 use std::path::Path;
 
-use apo_cli::progress::{self, ProgressRow};
-use apo_cli::RunConfig;
 use apo_core::Algorithm;
+use apo_train::progress_csv::{self, ProgressRow};
+use apo_train::RunConfig;
 
 use super::{apo_within, fails, ok, path};
 
@@ -65,7 +65,7 @@ fn run(dir: &Path, algo: Algorithm, env: &str, rows: &[ProgressRow]) {
         RunConfig::defaults(algo, env).to_toml(),
     )
     .expect("write config.toml");
-    progress::write(&dir.join("progress.csv"), rows).expect("write progress.csv");
+    progress_csv::write(&dir.join("progress.csv"), rows).expect("write progress.csv");
 }
 
 /// The texts of an SVG figure with the x coordinate of their anchor.

@@ -279,10 +279,10 @@ fn the_same_run_under_two_paths_counts_once_and_gaps_in_epochs_are_named() {
     // epochs 1, 2, 7: the gap is named, and the run's epochs are 7, not 3 rows
     let gap = tmp.path().join("gap");
     super::sweep_report::run(&gap, Algorithm::Apo, &[(1.0, 0.0), (2.0, 0.0), (3.0, 0.0)]);
-    let mut rows = progress::read(&gap.join("progress.csv")).expect("rows");
+    let mut rows = progress_csv::read(&gap.join("progress.csv")).expect("rows");
     rows[2].epoch = 7;
-    progress::write(&gap.join("progress.csv"), &rows).expect("write");
-    let read = progress::read_lenient(&gap.join("progress.csv"), false).expect("read");
+    progress_csv::write(&gap.join("progress.csv"), &rows).expect("write");
+    let read = progress_csv::read_lenient(&gap.join("progress.csv"), false).expect("read");
     assert_eq!(read.missing, vec![(3, 6)]);
     assert_eq!(
         apo_cli::summary::summarize(&gap, 1)

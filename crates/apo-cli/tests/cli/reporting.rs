@@ -5,10 +5,10 @@ use std::path::Path;
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
-use apo_cli::progress::ProgressRow;
-use apo_cli::trainer::{self, Observer};
-use apo_cli::RunConfig;
 use apo_core::Algorithm;
+use apo_train::progress_csv::ProgressRow;
+use apo_train::run::{self, Observer};
+use apo_train::RunConfig;
 
 use super::{fails, ok, path, train};
 
@@ -204,16 +204,16 @@ fn progress_advances_within_the_epoch() {
     config.train.epochs = 2;
     config.train.steps_per_epoch = 1000;
     let mut seen = Recorder::default();
-    let end = trainer::train::<burn::backend::NdArray>(
+    let end = run::train::<burn::backend::NdArray>(
         &config,
         tmp.path(),
         &Default::default(),
-        &trainer::Launch::new(1),
+        &run::Launch::new(1),
         &AtomicBool::new(false),
         &mut seen,
     )
     .expect("trains");
-    assert_eq!(end, trainer::TrainEnd::Finished);
+    assert_eq!(end, run::TrainEnd::Finished);
     assert_eq!(seen.epochs, vec![1, 2]);
     let every = apo_train::rollout::PROGRESS_EVERY as u64;
     let expected: Vec<u64> = (0..1000)
@@ -278,7 +278,7 @@ fn hand_runs_record_their_success_rate_and_eval_and_summary_print_it() {
     let csv = std::fs::read_to_string(run.join("progress.csv")).expect("progress.csv");
     let header = csv.lines().next().expect("header");
     assert!(header.split(',').any(|c| c == "success_rate"), "{header}");
-    let rows = apo_cli::progress::read(&run.join("progress.csv")).expect("rows");
+    let rows = apo_train::progress_csv::read(&run.join("progress.csv")).expect("rows");
     for row in &rows {
         assert_eq!(row.episodes, 2, "{row:?}");
         let rate = row.success_rate.expect("a hand task judges success");
@@ -289,7 +289,7 @@ fn hand_runs_record_their_success_rate_and_eval_and_summary_print_it() {
     // a task without a goal: an empty column, and no success rate from eval
     let cartpole = tmp.path().join("cartpole");
     train(&cartpole, "ppo", &[]);
-    let rows = apo_cli::progress::read(&cartpole.join("progress.csv")).expect("rows");
+    let rows = apo_train::progress_csv::read(&cartpole.join("progress.csv")).expect("rows");
     assert!(rows.iter().all(|r| r.success_rate.is_none()), "{rows:?}");
     let eval = ok(&["eval", "--run", path(&cartpole), "--episodes", "2"]);
     assert!(!eval.contains("success_rate"), "{eval}");

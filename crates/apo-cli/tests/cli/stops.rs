@@ -208,8 +208,8 @@ fn a_signal_to_the_sweep_reaches_its_runs_which_checkpoint_and_nothing_is_orphan
         text(&output.stdout)
     );
     // no child holds the run: its lock is free, and its checkpoint is before the target
-    apo_cli::run_dir::RunLock::acquire(&run).expect("the run's lock is free: no orphan");
-    let epoch = apo_cli::checkpoint::latest_epoch(&run)
+    apo_train::run_dir::RunLock::acquire(&run).expect("the run's lock is free: no orphan");
+    let epoch = apo_train::checkpoint::latest_epoch(&run)
         .expect("read")
         .expect("a checkpoint");
     assert!(epoch < 500, "the run stopped early (epoch {epoch})");

@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use apo_cli::config::RunConfig;
-use apo_cli::progress::{self, ProgressRow};
 use apo_cli::report::{self, Baseline};
 use apo_core::Algorithm;
+use apo_train::progress_csv::{self, ProgressRow};
+use apo_train::run_config::RunConfig;
 
 use super::{fails, ok, path};
 
@@ -38,7 +38,7 @@ pub fn run(dir: &Path, algo: Algorithm, rows: &[(f64, f64)]) {
         .enumerate()
         .map(|(i, &(mean, min))| row(i + 1, mean, min, mean - 10.0))
         .collect();
-    progress::write(&dir.join("progress.csv"), &rows).expect("write progress.csv");
+    progress_csv::write(&dir.join("progress.csv"), &rows).expect("write progress.csv");
 }
 
 fn refs(v: &[String]) -> Vec<&str> {
@@ -234,7 +234,7 @@ fn variants_strip_environment_algorithm_and_seed() {
         report::variant("ALE_Pong-v5-ppo-s1", "ALE/Pong-v5", Algorithm::Ppo),
         ""
     );
-    assert_eq!(apo_cli::run_dir::env_label("ALE/Pong-v5"), "ALE_Pong-v5");
+    assert_eq!(apo_train::run_dir::env_label("ALE/Pong-v5"), "ALE_Pong-v5");
 }
 
 #[test]
@@ -362,7 +362,7 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
     assert!(cells.contains("CartPole-v1,trpo,\"-\",2,"), "{cells}");
 
     // the same sweep again: everything is skipped
-    let first = progress::read(&out.join(names[0]).join("progress.csv")).expect("progress");
+    let first = progress_csv::read(&out.join(names[0]).join("progress.csv")).expect("progress");
     let text = run_sweep(sweep("2", "algo.omega1=0.001,0.01"));
     assert!(text.contains("finished 0 (skipped 6"), "{text}");
     // a finished run kept as its results only (config.toml, progress.csv and the marker, as
@@ -379,7 +379,7 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
         }
     }
     let short = copy.join(names[5]).join("progress.csv");
-    progress::write(&short, &first[..1]).expect("write");
+    progress_csv::write(&short, &first[..1]).expect("write");
     let mut again = sweep("2", "algo.omega1=0.001,0.01");
     *again.last_mut().expect("--out") = path(&copy).into();
     let text = run_sweep(again);
@@ -388,7 +388,7 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
     // more epochs: every run resumes from its checkpoint, its first epochs unchanged
     let text = run_sweep(sweep("3", "algo.omega1=0.001,0.01"));
     assert!(text.contains("finished 6 (skipped 0"), "{text}");
-    let now = progress::read(&out.join(names[0]).join("progress.csv")).expect("progress");
+    let now = progress_csv::read(&out.join(names[0]).join("progress.csv")).expect("progress");
     assert_eq!(now.len(), 3);
     assert_eq!(
         now[..2].iter().map(|r| r.ep_ret_mean).collect::<Vec<_>>(),

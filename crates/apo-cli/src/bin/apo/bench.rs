@@ -1,9 +1,9 @@
 //! `apo bench`: timings of updates, epochs, environments and policy calls.
 
 use anyhow::Context;
-use apo_cli::config::{BackendKind, KernelsKind, RunConfig};
 use apo_core::Algorithm;
 use apo_envs::mujoco::Physics;
+use apo_train::run_config::{BackendKind, KernelsKind, RunConfig};
 use clap::Subcommand;
 
 #[derive(Subcommand)]
@@ -20,16 +20,16 @@ pub enum BenchCommand {
         #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
         kernels: KernelsKind,
         /// Samples in the batch; 1..=10000000.
-        #[arg(long, default_value_t = 30_000, value_parser = apo_cli::input::count::<u64>(1, 10_000_000))]
+        #[arg(long, default_value_t = 30_000, value_parser = apo_cli::flags::count::<u64>(1, 10_000_000))]
         batch: u64,
         /// Observation dimension; 1..=100000.
-        #[arg(long, default_value_t = 60, value_parser = apo_cli::input::count::<u64>(1, 100_000))]
+        #[arg(long, default_value_t = 60, value_parser = apo_cli::flags::count::<u64>(1, 100_000))]
         obs: u64,
         /// Action dimension; 1..=10000.
-        #[arg(long, default_value_t = 8, value_parser = apo_cli::input::count::<u64>(1, 10_000))]
+        #[arg(long, default_value_t = 8, value_parser = apo_cli::flags::count::<u64>(1, 10_000))]
         act: u64,
         /// Timed repeats (after one warm-up); the median is printed; 1..=1000.
-        #[arg(long, default_value_t = 3, value_parser = apo_cli::input::count::<u64>(1, 1000))]
+        #[arg(long, default_value_t = 3, value_parser = apo_cli::flags::count::<u64>(1, 1000))]
         repeats: u64,
     },
     /// Train a few epochs and print where each epoch's time goes (rollout, policy update,
@@ -45,7 +45,7 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 4000)]
         steps_per_epoch: usize,
         /// Epochs (the first includes the set-up and is left out of the medians); 2..=1000.
-        #[arg(long, default_value_t = 5, value_parser = apo_cli::input::count::<u64>(2, 1000))]
+        #[arg(long, default_value_t = 5, value_parser = apo_cli::flags::count::<u64>(2, 1000))]
         epochs: u64,
         /// Environments stepped together.
         #[arg(long, default_value_t = 1)]
@@ -57,7 +57,7 @@ pub enum BenchCommand {
         #[arg(long, value_enum, default_value_t = KernelsKind::Auto)]
         kernels: KernelsKind,
         /// Threads that step the environments (0: the cores available); 0..=1024.
-        #[arg(long, default_value_t = 0, value_parser = apo_cli::input::count::<usize>(0, 1024))]
+        #[arg(long, default_value_t = 0, value_parser = apo_cli::flags::count::<usize>(0, 1024))]
         threads: usize,
         /// The sequential epoch: no overlap of the value fit with the next rollout.
         #[arg(long)]
@@ -69,13 +69,13 @@ pub enum BenchCommand {
         #[arg(long)]
         env: String,
         /// Steps to time (environment steps, summed over the vector); 1..=1000000000.
-        #[arg(long, default_value_t = 100_000, value_parser = apo_cli::input::count::<u64>(1, 1_000_000_000))]
+        #[arg(long, default_value_t = 100_000, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000_000))]
         steps: u64,
         /// Environments stepped together as a vector (1: one bare environment); 1..=65536.
-        #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<usize>(1, 65_536))]
+        #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<usize>(1, 65_536))]
         num_envs: usize,
         /// Threads that step the vector (0: the cores available); 0..=1024.
-        #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<usize>(0, 1024))]
+        #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<usize>(0, 1024))]
         threads: usize,
         /// Physics of MuJoCo environments: mujoco2, or mujoco3 (builds with the `mujoco3` feature).
         #[arg(long, value_parser = crate::parse_physics, default_value = "mujoco2")]
@@ -84,16 +84,16 @@ pub enum BenchCommand {
     /// Microseconds per rollout policy call (host MLP, (64, 64)).
     Policy {
         /// Observation dimension; 1..=100000.
-        #[arg(long, default_value_t = 11, value_parser = apo_cli::input::count::<u64>(1, 100_000))]
+        #[arg(long, default_value_t = 11, value_parser = apo_cli::flags::count::<u64>(1, 100_000))]
         obs: u64,
         /// Action dimension; 1..=10000.
-        #[arg(long, default_value_t = 3, value_parser = apo_cli::input::count::<u64>(1, 10_000))]
+        #[arg(long, default_value_t = 3, value_parser = apo_cli::flags::count::<u64>(1, 10_000))]
         act: u64,
         /// Observations per call (environments stepped together); 1..=1000000.
-        #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<u64>(1, 1_000_000))]
+        #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000))]
         batch: u64,
         /// Calls to time; 1..=1000000000.
-        #[arg(long, default_value_t = 100_000, value_parser = apo_cli::input::count::<u64>(1, 1_000_000_000))]
+        #[arg(long, default_value_t = 100_000, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000_000))]
         calls: u64,
     },
 }
@@ -248,7 +248,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
         } => {
             let (obs, act, batch, calls) =
                 (obs as usize, act as usize, batch as usize, calls as usize);
-            apo_cli::input::check_fits(
+            apo_train::input::check_fits(
                 apo_cli::bench::policy_call_bytes(obs, act, batch),
                 "apo bench policy --obs/--act/--batch",
             )?;

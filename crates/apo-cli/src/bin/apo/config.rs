@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use apo_cli::config::{Preset, RunConfig};
-use apo_cli::run_dir;
 use apo_core::Algorithm;
+use apo_train::run_config::{Preset, RunConfig};
+use apo_train::run_dir;
 
 #[derive(clap::Args)]
 pub struct ConfigArgs {
@@ -31,7 +31,7 @@ pub struct ConfigArgs {
 }
 
 pub fn run(args: ConfigArgs) -> anyhow::Result<()> {
-    apo_cli::config::check_repeated_sets(&args.sets)?;
+    apo_train::run_config::check_repeated_sets(&args.sets)?;
     let config = match &args.run {
         Some(run) => RunConfig::load(&run.join(run_dir::CONFIG))
             .with_context(|| format!("{} is not a run directory", run.display()))?,
@@ -39,7 +39,7 @@ pub fn run(args: ConfigArgs) -> anyhow::Result<()> {
             let algo = match &args.config {
                 Some(path) => args
                     .algo
-                    .or(apo_cli::config::file_algorithm(path)?)
+                    .or(apo_train::run_config::file_algorithm(path)?)
                     .unwrap_or(Algorithm::Apo),
                 None => args.algo.unwrap_or(Algorithm::Apo),
             };

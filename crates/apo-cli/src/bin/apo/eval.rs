@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use apo_cli::checkpoint::Which;
+use apo_train::checkpoint::Which;
 
 #[derive(clap::Args)]
 pub struct EvalArgs {
@@ -11,7 +11,7 @@ pub struct EvalArgs {
     #[arg(long)]
     run: PathBuf,
     /// Number of episodes; 1..=1000000.
-    #[arg(long, default_value_t = 10, value_parser = apo_cli::input::count::<u64>(1, 1_000_000))]
+    #[arg(long, default_value_t = 10, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000))]
     episodes: u64,
     /// Act with the mean (Gaussian) or most likely (categorical) action.
     #[arg(long)]
@@ -26,7 +26,7 @@ pub struct EvalArgs {
 }
 
 pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
-    let (result, epoch) = apo_cli::eval::evaluate(
+    let (result, epoch) = apo_train::playback::evaluate(
         &args.run,
         &args.checkpoint,
         args.episodes as usize,

@@ -1,8 +1,8 @@
 //! `apo`: train, evaluate, plot, report, sweep and benchmark APO, PAPO and the baselines.
 //!
 //! One module per subcommand, each owning its arguments; what they share — how user files
-//! are read and output paths checked (`apo_cli::input`), run-directory ownership
-//! (`apo_cli::run_dir`), signals (`signals`) — lives in one place.
+//! are read and output paths checked (`apo_train::input`), run-directory ownership
+//! (`apo_train::run_dir`), signals (`signals`) — lives in one place.
 
 use std::process::ExitCode;
 

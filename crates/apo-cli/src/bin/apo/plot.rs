@@ -14,7 +14,7 @@ pub struct PlotArgs {
     #[arg(long)]
     force: bool,
     /// Moving average over this many epochs (1: none); 1..=100000.
-    #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<usize>(1, 100_000))]
+    #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<usize>(1, 100_000))]
     smooth: usize,
     /// Plot this numeric progress.csv column instead of the returns (e.g. kl,
     /// ls_rejected_objective, bias, min_j_sq_on).
@@ -23,7 +23,7 @@ pub struct PlotArgs {
 }
 
 pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
-    apo_cli::input::check_output_file(&args.out, "--out", args.force)?;
+    apo_train::input::check_output_file(&args.out, "--out", args.force)?;
     let runs = apo_cli::report::distinct_runs(&args.runs)?;
     apo_cli::plot::plot(
         &runs,

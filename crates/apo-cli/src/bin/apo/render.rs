@@ -4,10 +4,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 
-use apo_cli::checkpoint::Which;
-use apo_cli::run_dir::VIDEOS;
-use apo_cli::video::{render_run, RenderOptions};
 use apo_envs::Camera;
+use apo_train::checkpoint::Which;
+use apo_train::run_dir::VIDEOS;
+use apo_train::video::{render_run, RenderOptions};
 
 use crate::signals::{interrupted_status, Signals};
 
@@ -21,7 +21,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "latest")]
     checkpoint: Which,
     /// Number of episodes; 1..=1000.
-    #[arg(long, default_value_t = 2, value_parser = apo_cli::input::count::<u64>(1, 1000))]
+    #[arg(long, default_value_t = 2, value_parser = apo_cli::flags::count::<u64>(1, 1000))]
     episodes: u64,
     /// Act with the mean (Gaussian) or most likely (categorical) action.
     #[arg(long)]
@@ -37,20 +37,20 @@ pub struct RenderArgs {
     #[arg(long)]
     force: bool,
     /// Frame width in pixels; 16..=4096.
-    #[arg(long, default_value_t = 480, value_parser = apo_cli::input::count::<u32>(16, 4096))]
+    #[arg(long, default_value_t = 480, value_parser = apo_cli::flags::count::<u32>(16, 4096))]
     width: u32,
     /// Frame height in pixels; 16..=4096.
-    #[arg(long, default_value_t = 360, value_parser = apo_cli::input::count::<u32>(16, 4096))]
+    #[arg(long, default_value_t = 360, value_parser = apo_cli::flags::count::<u32>(16, 4096))]
     height: u32,
     /// The camera: `track` (follows the robot), `free` (MuJoCo's default view) or the name of
     /// a camera of the model.
     #[arg(long, default_value = "track")]
     camera: Camera,
     /// Frames per second of the video; 1..=100.
-    #[arg(long, default_value_t = 30, value_parser = apo_cli::input::count::<u32>(1, 100))]
+    #[arg(long, default_value_t = 30, value_parser = apo_cli::flags::count::<u32>(1, 100))]
     fps: u32,
     /// Keep one step in N (shorter videos of long episodes); 1..=10000.
-    #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<u64>(1, 10_000))]
+    #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<u64>(1, 10_000))]
     every: u64,
 }
 
@@ -63,8 +63,8 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         None => {
             // only in a run apo made (a folder with just a config.toml gets nothing written),
             // and only in a `videos/` apo made (listed in the run's marker)
-            let dir = if apo_cli::run_dir::check_resumable(&args.run).is_ok() {
-                apo_cli::run_dir::own_videos(&args.run)?
+            let dir = if apo_train::run_dir::check_resumable(&args.run).is_ok() {
+                apo_train::run_dir::own_videos(&args.run)?
             } else {
                 args.run.join(VIDEOS)
             };

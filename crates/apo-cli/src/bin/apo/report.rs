@@ -12,26 +12,26 @@ pub struct ReportArgs {
     #[arg(required = true)]
     runs: Vec<PathBuf>,
     /// N of "the last N epochs" (paper: 20 continuous, 100 Atari); 1..=1000000000.
-    #[arg(long, default_value_t = 20, value_parser = apo_cli::input::count::<u64>(1, 1_000_000_000))]
+    #[arg(long, default_value_t = 20, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000_000))]
     last: u64,
     /// Folder for report.md, report.csv and curves-<env>.<image>.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Episodes of the random policy that the scores are normalized by; 1..=100000.
-    #[arg(long, default_value_t = 10, value_parser = apo_cli::input::count::<u64>(1, 100_000))]
+    #[arg(long, default_value_t = 10, value_parser = apo_cli::flags::count::<u64>(1, 100_000))]
     random_episodes: u64,
     /// Image format of the curves.
     #[arg(long, value_parser = ["png", "svg"], default_value = "png")]
     image: String,
     /// Moving average of the curves over this many epochs (1: none); 1..=100000.
-    #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<usize>(1, 100_000))]
+    #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<usize>(1, 100_000))]
     smooth: usize,
     /// Scores of the statistics section: `trpo` (the paper's TRPO-normalized score against
     /// the random policy) or `minmax` (per environment over the compared runs).
     #[arg(long, value_parser = ["trpo", "minmax"], default_value = "trpo")]
     normalize: String,
     /// Bootstrap resamples of each interval of the statistics section; 1..=10000000.
-    #[arg(long, default_value_t = 2000, value_parser = apo_cli::input::count::<usize>(1, 10_000_000))]
+    #[arg(long, default_value_t = 2000, value_parser = apo_cli::flags::count::<usize>(1, 10_000_000))]
     reps: usize,
     /// Seed of the bootstrap (the same seed gives the same report).
     #[arg(long, default_value_t = 0)]
@@ -41,12 +41,12 @@ pub struct ReportArgs {
 pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     // every option is checked before any work
     if let Some(out) = &args.out {
-        apo_cli::input::prepare_output_dir(out, "--out")?;
+        apo_train::input::prepare_output_dir(out, "--out")?;
         let fixed = ["report.md".to_string(), "report.csv".to_string()];
-        apo_cli::run_dir::check_outputs(out, report::REPORT_MARKER, &fixed)?;
+        apo_train::run_dir::check_outputs(out, report::REPORT_MARKER, &fixed)?;
     }
     // the profiles hold reps × thresholds values at once (the default thresholds: 101)
-    apo_cli::input::check_fits(
+    apo_train::input::check_fits(
         apo_cli::stats::profile_memory(
             &apo_cli::stats::StratifiedBootstrap {
                 reps: args.reps,

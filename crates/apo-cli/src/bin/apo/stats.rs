@@ -11,7 +11,7 @@ pub struct StatsArgs {
     /// CSV with the columns `algorithm,task,score`, one row per run (e.g. normalized scores).
     scores: PathBuf,
     /// Bootstrap resamples of each interval; 1..=10000000.
-    #[arg(long, default_value_t = 2000, value_parser = apo_cli::input::count::<usize>(1, 10_000_000))]
+    #[arg(long, default_value_t = 2000, value_parser = apo_cli::flags::count::<usize>(1, 10_000_000))]
     reps: usize,
     /// Seed of the bootstrap (the same seed gives the same intervals).
     #[arg(long, default_value_t = 0)]
@@ -55,7 +55,7 @@ fn parse_taus(text: &str) -> anyhow::Result<Vec<f64>> {
 pub fn run(args: &StatsArgs) -> anyhow::Result<()> {
     let taus = args.taus.as_deref().map(parse_taus).transpose()?;
     let text =
-        apo_cli::input::read_text(&args.scores, "score file", apo_cli::input::PROGRESS_FILE)?;
+        apo_train::input::read_text(&args.scores, "score file", apo_train::input::PROGRESS_FILE)?;
     let comparison =
         stats::read_scores(&text).with_context(|| format!("{}", args.scores.display()))?;
     let taus = taus.unwrap_or_else(|| stats::default_taus(&comparison));
@@ -64,7 +64,7 @@ pub fn run(args: &StatsArgs) -> anyhow::Result<()> {
         level: 0.95,
         seed: args.ci_seed,
     };
-    apo_cli::input::check_fits(
+    apo_train::input::check_fits(
         stats::profile_memory(&bootstrap, taus.len()),
         &format!(
             "--reps {} with {} thresholds (--taus)",

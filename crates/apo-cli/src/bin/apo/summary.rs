@@ -8,7 +8,7 @@ pub struct SummaryArgs {
     #[arg(required = true)]
     runs: Vec<PathBuf>,
     /// N of "the last N epochs" (paper: 20 continuous, 100 Atari); 1..=1000000000.
-    #[arg(long, default_value_t = 20, value_parser = apo_cli::input::count::<u64>(1, 1_000_000_000))]
+    #[arg(long, default_value_t = 20, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000_000))]
     last: u64,
     /// CSV instead of an aligned table.
     #[arg(long)]

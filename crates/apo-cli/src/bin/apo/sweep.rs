@@ -6,9 +6,9 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 
 use anyhow::Context;
-use apo_cli::config::Preset;
 use apo_cli::sweep;
 use apo_core::Algorithm;
+use apo_train::run_config::Preset;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::signals::{interrupted_status, SweepSignals};
@@ -33,10 +33,10 @@ pub struct SweepArgs {
     #[arg(long)]
     out: PathBuf,
     /// Epochs of every run; 1..=1000000000.
-    #[arg(long, default_value_t = 200, value_parser = apo_cli::input::count::<u64>(1, apo_train::config::MAX_EPOCHS as u64))]
+    #[arg(long, default_value_t = 200, value_parser = apo_cli::flags::count::<u64>(1, apo_train::config::MAX_EPOCHS as u64))]
     epochs: u64,
     /// Environment steps per epoch of every run [default: the config's]; 1..=100000000.
-    #[arg(long, value_parser = apo_cli::input::count::<usize>(1, apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
+    #[arg(long, value_parser = apo_cli::flags::count::<usize>(1, apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
     /// Preset of every run.
     #[arg(long, value_enum)]
@@ -49,16 +49,16 @@ pub struct SweepArgs {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
     /// Runs at once; 1..=256.
-    #[arg(long, default_value_t = 1, value_parser = apo_cli::input::count::<usize>(1, 256))]
+    #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<usize>(1, 256))]
     jobs: usize,
     /// Threads of each run (0: the cores available divided by --jobs); 0..=1024.
-    #[arg(long, default_value_t = 0, value_parser = apo_cli::input::count::<usize>(0, 1024))]
+    #[arg(long, default_value_t = 0, value_parser = apo_cli::flags::count::<usize>(0, 1024))]
     threads: usize,
     /// Metric that ranks the cells.
     #[arg(long, value_enum, default_value_t = sweep::Metric::WorstLast)]
     metric: sweep::Metric,
     /// N of "the last N epochs"; 1..=1000000000.
-    #[arg(long, default_value_t = 20, value_parser = apo_cli::input::count::<u64>(1, 1_000_000_000))]
+    #[arg(long, default_value_t = 20, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000_000))]
     last: u64,
     /// The most runs the sweep may have (counted before anything starts).
     #[arg(long, default_value_t = sweep::DEFAULT_MAX_RUNS, value_parser = clap::value_parser!(u64).range(1..))]
@@ -84,7 +84,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
             .map(|v| v.get_name().to_string()),
         config: args.config.clone(),
         sets: {
-            apo_cli::config::check_repeated_sets(&args.sets)?;
+            apo_train::run_config::check_repeated_sets(&args.sets)?;
             args.sets.clone()
         },
         steps_per_epoch: args.steps_per_epoch,
@@ -137,7 +137,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
     let results = sweep::cell_results(&args.out, &runs, epochs, args.metric, args.last as usize);
     let csv = sweep::cells_csv(&results);
     let csv_path = args.out.join("cells.csv");
-    apo_cli::atomic::write(&csv_path, csv.as_bytes())
+    apo_train::atomic::write(&csv_path, csv.as_bytes())
         .with_context(|| format!("cannot write {}", csv_path.display()))?;
     let metric = clap::ValueEnum::to_possible_value(&args.metric)
         .map(|v| v.get_name().to_string())

@@ -6,12 +6,12 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 
 use anyhow::Context;
-use apo_cli::config::{BackendKind, Preset, RunConfig};
-use apo_cli::progress::ProgressRow;
-use apo_cli::run_dir::{self, NewRunDir, RunLock};
-use apo_cli::trainer::{self, Observer, TrainEnd};
 use apo_core::Algorithm;
 use apo_envs::mujoco::Physics;
+use apo_train::progress_csv::ProgressRow;
+use apo_train::run::{self, Observer, TrainEnd};
+use apo_train::run_config::{BackendKind, Preset, RunConfig};
+use apo_train::run_dir::{self, NewRunDir, RunLock};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::signals::{interrupted_status, Signals, STOP_GRACE};
@@ -39,20 +39,20 @@ pub struct TrainArgs {
     #[arg(long, value_enum)]
     preset: Option<Preset>,
     /// Seed [config: seed; default 0; 0..=9223372036854775807].
-    #[arg(long, value_parser = apo_cli::input::count::<u64>(0, i64::MAX as u64))]
+    #[arg(long, value_parser = apo_cli::flags::count::<u64>(0, i64::MAX as u64))]
     seed: Option<u64>,
     /// Number of epochs [config: epochs; default 200]; with --resume, the run's new target; 1..=1000000000.
-    #[arg(long, value_parser = apo_cli::input::count::<usize>(1, apo_train::config::MAX_EPOCHS as u64))]
+    #[arg(long, value_parser = apo_cli::flags::count::<usize>(1, apo_train::config::MAX_EPOCHS as u64))]
     epochs: Option<usize>,
     /// Environment steps per epoch [config: steps_per_epoch; default 30000]; 1..=100000000.
-    #[arg(long, value_parser = apo_cli::input::count::<usize>(1, apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
+    #[arg(long, value_parser = apo_cli::flags::count::<usize>(1, apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
     /// Environments stepped together [config: num_envs; default 1]; 1..=65536.
-    #[arg(long, value_parser = apo_cli::input::count::<usize>(1, apo_train::config::MAX_NUM_ENVS as u64))]
+    #[arg(long, value_parser = apo_cli::flags::count::<usize>(1, apo_train::config::MAX_NUM_ENVS as u64))]
     num_envs: Option<usize>,
     /// Threads that step the environments (0: the cores available); results do not depend
     /// on it, so it may change on --resume; 0..=1024.
-    #[arg(long, default_value_t = 0, value_parser = apo_cli::input::count::<usize>(0, 1024))]
+    #[arg(long, default_value_t = 0, value_parser = apo_cli::flags::count::<usize>(0, 1024))]
     threads: usize,
     /// Write a checkpoint every N epochs [config: checkpoint_every; default 1].
     #[arg(long, value_name = "N")]
@@ -123,16 +123,16 @@ impl TrainArgs {
 /// `--config` file (the flag wins; the warning says which value was dropped).
 fn warn_overridden(flags: &[(&str, &str, String)], sets: &[String], file: Option<&Path>) {
     let file_table = file.and_then(|p| {
-        apo_cli::input::read_text(p, "config file", apo_cli::input::SMALL_FILE)
+        apo_train::input::read_text(p, "config file", apo_train::input::SMALL_FILE)
             .ok()?
             .parse::<toml::Table>()
             .ok()
     });
     for (key, flag, value) in flags {
-        let flagged = apo_cli::config::parse_value(value);
+        let flagged = apo_train::run_config::parse_value(value);
         for set in sets {
             if let Some((k, v)) = set.split_once('=') {
-                if k.trim() == *key && apo_cli::config::parse_value(v.trim()) != flagged {
+                if k.trim() == *key && apo_train::run_config::parse_value(v.trim()) != flagged {
                     eprintln!("warning: {flag} {value} overrides --set {set}");
                 }
             }
@@ -152,7 +152,7 @@ fn warn_overridden(flags: &[(&str, &str, String)], sets: &[String], file: Option
 /// on any rank ends the whole job.
 #[cfg(feature = "mpi")]
 pub fn train_on_ranks(args: TrainArgs) -> anyhow::Result<ExitCode> {
-    let mpi = apo_cli::mpi::Mpi::init()?;
+    let mpi = apo_train::mpi::Mpi::init()?;
     let comm = mpi.comm();
     let result = train(args, &comm);
     if comm.is_distributed() {
@@ -209,14 +209,14 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
             )?;
             if args.epochs.is_some() && writer {
                 // the new target is part of the run: a later plain --resume continues to it
-                apo_cli::atomic::write(&config_path, config.to_toml().as_bytes())
+                apo_train::atomic::write(&config_path, config.to_toml().as_bytes())
                     .with_context(|| format!("cannot write {}", config_path.display()))?;
             }
             (config, dir.clone(), true, lock)
         }
         None => {
             let from_file = match &args.config {
-                Some(path) => apo_cli::config::file_algorithm(path)?,
+                Some(path) => apo_train::run_config::file_algorithm(path)?,
                 None => None,
             };
             let algo = args.algo.or(from_file).with_context(|| {
@@ -226,14 +226,14 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
                 )
             })?;
             let file_env = match (&args.env, &args.config) {
-                (None, Some(path)) => apo_cli::config::file_env(path)?,
+                (None, Some(path)) => apo_train::run_config::file_env(path)?,
                 _ => None,
             };
             let env = args.env.clone().or(file_env).context(
                 "--env is required (see `apo list`), or a --config file with an env key",
             )?;
             let spec = apo_envs::registry::spec(&env)?;
-            apo_cli::config::check_repeated_sets(&args.sets)?;
+            apo_train::run_config::check_repeated_sets(&args.sets)?;
             let flags = args.flags(&env);
             warn_overridden(&flags, &args.sets, args.config.as_deref());
             let mut sets = args.sets.clone();
@@ -266,7 +266,7 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
             let config_path = dir.join(run_dir::CONFIG);
             let written =
                 run_dir::claim_new(&dir, &[run_dir::CONFIG, run_dir::LOG]).and_then(|()| {
-                    apo_cli::atomic::write(&config_path, config.to_toml().as_bytes())
+                    apo_train::atomic::write(&config_path, config.to_toml().as_bytes())
                         .with_context(|| format!("cannot write {}", config_path.display()))
                 });
             if let Err(e) = written {
@@ -304,7 +304,7 @@ fn run_training(
     let _deadline = signals.deadline(
         STOP_GRACE,
         Box::new(move || {
-            let kept = match apo_cli::checkpoint::latest_epoch(&dir) {
+            let kept = match apo_train::checkpoint::latest_epoch(&dir) {
                 Ok(Some(epoch)) if epoch > 0 => format!(
                     "the run keeps its checkpoint of epoch {epoch}; continue it with `apo train --resume {}`",
                     dir.display()
@@ -321,13 +321,13 @@ fn run_training(
         }),
     );
     let mut bar = Bar::new(quiet, config);
-    let launch = trainer::Launch {
+    let launch = run::Launch {
         resume,
         threads,
         comm: comm.clone(),
     };
     let end = match config.backend {
-        BackendKind::Cpu => trainer::train::<burn::backend::NdArray>(
+        BackendKind::Cpu => run::train::<burn::backend::NdArray>(
             config,
             run_dir,
             &Default::default(),
@@ -337,7 +337,7 @@ fn run_training(
         ),
         BackendKind::Wgpu => {
             crate::quiet_wgpu();
-            trainer::train::<burn::backend::Wgpu>(
+            run::train::<burn::backend::Wgpu>(
                 config,
                 run_dir,
                 &Default::default(),

@@ -10,9 +10,9 @@ use burn::backend::NdArray;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
+use crate::action_kind;
 use crate::checkpoint::{self, Shapes, Which};
-use crate::config::RunConfig;
-use apo_train::action_kind;
+use crate::run_config::RunConfig;
 
 /// Returns of evaluation episodes.
 #[derive(Debug, Clone, PartialEq)]
@@ -114,7 +114,7 @@ impl LoadedRun {
             );
         }
         let from = checkpoint::locate(run_dir, which)?.with_context(|| {
-            let recorded = crate::progress::read_lenient(&run_dir.join("progress.csv"), true)
+            let recorded = crate::progress_csv::read_lenient(&run_dir.join("progress.csv"), true)
                 .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
             if recorded > 0 {
                 format!(

@@ -10,9 +10,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use crate::ProgressRow;
+pub use crate::{EpisodeRecord, Phase};
 use anyhow::Context;
-use apo_train::ProgressRow;
-pub use apo_train::{EpisodeRecord, Phase};
 
 fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
     let bytes = crate::input::read_bytes(path, "episode file", crate::input::PROGRESS_FILE)?;
@@ -163,8 +163,8 @@ pub fn recompute_rows(rows: &mut [ProgressRow], dir: &Path, k: f64) -> anyhow::R
         return Ok(0);
     }
     let episodes = read_lenient(&path)?;
-    crate::progress::warn(&path, "record(s) left out", &episodes.left_out);
-    let mut by_epoch: BTreeMap<(usize, Phase), Vec<apo_train::Episode>> = BTreeMap::new();
+    crate::progress_csv::warn(&path, "record(s) left out", &episodes.left_out);
+    let mut by_epoch: BTreeMap<(usize, Phase), Vec<crate::Episode>> = BTreeMap::new();
     for r in &episodes.records {
         by_epoch
             .entry((r.epoch, r.phase))
@@ -178,18 +178,14 @@ pub fn recompute_rows(rows: &mut [ProgressRow], dir: &Path, k: f64) -> anyhow::R
             covered += 1;
             let unstable = train.iter().filter(|e| e.unstable).count();
             row.set_training(
-                apo_train::episode_stats(train, k).as_ref(),
-                apo_train::rollout::success_rate(train),
+                crate::episode_stats(train, k).as_ref(),
+                crate::rollout::success_rate(train),
                 unstable,
             );
         }
         if let Some(eval) = by_epoch.get(&(row.epoch, Phase::Eval)) {
             let unstable = eval.iter().filter(|e| e.unstable).count();
-            row.set_evaluation(
-                apo_train::episode_stats(eval, k).as_ref(),
-                unstable,
-                row.eval_s,
-            );
+            row.set_evaluation(crate::episode_stats(eval, k).as_ref(), unstable, row.eval_s);
         }
     }
     Ok(covered)

@@ -1,21 +1,21 @@
-//! Training into a run directory: [`apo_train::Trainer`] epoch after epoch, with the run's
+//! Training into a run directory: [`crate::Trainer`] epoch after epoch, with the run's
 //! files — `progress.csv`, `episodes.csv`, TensorBoard events and checkpoints — written after
 //! each epoch, and resuming from them.
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use crate::{HostActor, TrainError, Trainer};
 use anyhow::{bail, Context};
 use apo_core::inference::HostPolicy;
 use apo_core::{Comm, MlpPolicyConfig};
-use apo_train::{HostActor, TrainError, Trainer};
 use burn::backend::NdArray;
 use burn::tensor::backend::Backend;
 
 use crate::checkpoint::{self, Shapes, TrainState, Which};
-use crate::config::RunConfig;
-use crate::episodes::EpisodeLog;
-use crate::progress::{self, ProgressRow};
+use crate::episodes_csv::EpisodeLog;
+use crate::progress_csv::{self, ProgressRow};
+use crate::run_config::RunConfig;
 use crate::tensorboard::{row_scalars, EventWriter};
 use crate::video::{EpochVideos, TENSORBOARD_VIDEO_BYTES};
 
@@ -153,7 +153,7 @@ pub fn train<B: Backend>(
     let mut rows = Vec::new();
     if resume {
         let on_disk = if writer && progress_path.exists() {
-            progress::read(&progress_path)?
+            progress_csv::read(&progress_path)?
         } else {
             Vec::new()
         };
@@ -274,7 +274,7 @@ pub fn train<B: Backend>(
         observer.epoch(&row, epochs);
         rows.push(row.clone());
         if let Some(events) = &mut events {
-            progress::write(&progress_path, &rows)?;
+            progress_csv::write(&progress_path, &rows)?;
             episodes.append(&report.episodes)?;
             events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
         }

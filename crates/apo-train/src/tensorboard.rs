@@ -30,7 +30,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 
-use crate::progress::ProgressRow;
+use crate::progress_csv::ProgressRow;
 
 /// The `file_version` of the first event, which tells TensorBoard the format version.
 const FILE_VERSION: &str = "brain.Event:2";

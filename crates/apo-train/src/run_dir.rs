@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 
-use crate::config::RunConfig;
+use crate::run_config::RunConfig;
 
 /// `env` as a part of a file name: the path separators of a namespaced name become `_`
 /// (`ALE/Pong-v5` → `ALE_Pong-v5`), so that a run of it is one directory, not two.
@@ -268,7 +268,7 @@ pub fn remove_run_files(
 ) -> anyhow::Result<Vec<String>> {
     let listed = created_entries(dir)?.unwrap_or_default();
     // the last epoch the run reached: apo wrote no epoch's video or checkpoint after it
-    let recorded = crate::progress::read_lenient(&dir.join(PROGRESS), true)
+    let recorded = crate::progress_csv::read_lenient(&dir.join(PROGRESS), true)
         .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
     let checkpointed = crate::checkpoint::latest_epoch(dir)
         .ok()

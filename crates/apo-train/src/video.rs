@@ -6,7 +6,7 @@ use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::{mpsc, Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
@@ -15,11 +15,12 @@ use apo_envs::{Camera, Env, Frame, RunningMeanStd};
 use plotters::backend::BitMapBackend;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
+use plotters::style::{register_font, FontStyle};
 
 use crate::atomic;
 use crate::checkpoint::Which;
-use crate::config::RunConfig;
-use crate::eval::{Episodes, EvalResult, LoadedRun, Moment};
+use crate::playback::{Episodes, EvalResult, LoadedRun, Moment};
+use crate::run_config::RunConfig;
 use crate::run_dir::VIDEOS;
 
 /// A video's container, from its file name's extension.
@@ -524,7 +525,7 @@ impl Drop for VideoWriter {
 /// # Errors
 /// When no font is installed (Debian's `fonts-dejavu-core`).
 pub fn overlay(frame: &mut Frame, lines: &[String]) -> anyhow::Result<()> {
-    crate::plot::load_font()?;
+    crate::video::load_font()?;
     let (width, height) = (frame.width(), frame.height());
     let size = (height / 22).clamp(9, 40);
     let root = BitMapBackend::with_buffer(frame.rgb_mut(), (width, height)).into_drawing_area();
@@ -585,7 +586,7 @@ pub struct Rendered {
 }
 
 /// Records `options.episodes` episodes of the policy in checkpoint `which` of `run_dir` to
-/// the video `out`: the episodes [`crate::eval::evaluate`] runs with the same seed, a frame
+/// the video `out`: the episodes [`crate::playback::evaluate`] runs with the same seed, a frame
 /// after each reset and each `every`-th step, with the overlay of [`record`].
 ///
 /// # Errors
@@ -617,7 +618,7 @@ pub fn render_run(
 }
 
 /// Records `options.episodes` episodes of `policy` (held in memory) on `env` to the video
-/// `out`: the episodes of [`crate::eval::play_episodes`] with `options.seed`, framed as by
+/// `out`: the episodes of [`crate::playback::play_episodes`] with `options.seed`, framed as by
 /// [`render_run`]. `env_name` names the environment in errors. Returns the video's path,
 /// its frames and the episodes' results.
 ///
@@ -641,7 +642,7 @@ pub fn render_policy(
         options.fps,
         options.replace,
     )?;
-    let result = crate::eval::play_episodes(
+    let result = crate::playback::play_episodes(
         env,
         policy,
         normalizer,
@@ -692,7 +693,7 @@ pub fn record(
     writer.push(frame, hold)
 }
 
-/// The seed stream of a training run's videos (`apo_train::derive_seed`; the training and
+/// The seed stream of a training run's videos (`crate::derive_seed`; the training and
 /// evaluation streams are 0–5).
 const VIDEO_STREAM: u64 = 6;
 
@@ -739,7 +740,7 @@ impl EpochVideos {
         let options = RenderOptions {
             episodes: 1,
             deterministic: config.train.eval_deterministic,
-            seed: apo_train::derive_seed(config.train.seed, 0, VIDEO_STREAM),
+            seed: crate::derive_seed(config.train.seed, 0, VIDEO_STREAM),
             camera: Camera::Track,
             width,
             height,
@@ -812,6 +813,35 @@ impl EpochVideos {
         )?;
         Ok((path, (self.options.width, self.options.height), result))
     }
+}
+
+/// Where the font for the text of plots and videos is looked for (Debian's `fonts-dejavu-core`).
+const FONT_PATHS: &[&str] = &[
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+];
+
+/// Registers the system's sans-serif font (Debian's `fonts-dejavu-core`) with plotters,
+/// once per process: the text drawn on video frames and on apo-cli's plots.
+///
+/// # Errors
+/// When no font is installed or it cannot be read.
+pub fn load_font() -> anyhow::Result<()> {
+    static LOADED: OnceLock<Result<(), String>> = OnceLock::new();
+    let register = || -> anyhow::Result<()> {
+        let path = FONT_PATHS.iter().map(PathBuf::from).find(|p| p.exists()).context(
+            "no font for the text of plots and videos: install Debian's fonts-dejavu-core (apt-get install fonts-dejavu-core)",
+        )?;
+        let bytes =
+            std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+        register_font("sans-serif", FontStyle::Normal, bytes)
+            .map_err(|_| anyhow::anyhow!("{} is not a usable font", path.display()))
+    };
+    LOADED
+        .get_or_init(|| register().map_err(|e| format!("{e:#}")))
+        .clone()
+        .map_err(anyhow::Error::msg)
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 
 use std::path::Path;
 
-pub use apo_train::metrics::{EpochTimes, ProgressRow, TIME_COLUMNS};
+pub use crate::metrics::{EpochTimes, ProgressRow, TIME_COLUMNS};
 
 /// The columns every `progress.csv` of apo has, first in its header.
 const REQUIRED_COLUMNS: [&str; 4] = ["epoch", "env_steps", "episodes", "ep_ret_mean"];
@@ -186,7 +186,7 @@ fn warn_left_out(path: &Path, progress: Progress) -> anyhow::Result<Vec<Progress
 
 /// Warns on stderr, once per file, about the records of `path` that a lenient reader left
 /// out: how many (`what`) and the first few, one per `lines`.
-pub(crate) fn warn(path: &Path, what: &str, lines: &[String]) {
+pub fn warn(path: &Path, what: &str, lines: &[String]) {
     if lines.is_empty() {
         return;
     }

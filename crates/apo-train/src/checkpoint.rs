@@ -20,9 +20,9 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use crate::RunState;
 use anyhow::{bail, Context};
 use apo_core::{ActionKind, Learner, MlpPolicyConfig, Multipliers, PolicyFamily};
-use apo_train::RunState;
 use burn::backend::Autodiff;
 use burn::module::Module;
 use burn::optim::Optimizer;
@@ -31,7 +31,7 @@ use burn::tensor::backend::Backend;
 use serde::{Deserialize, Serialize};
 
 use crate::atomic;
-use crate::config::RunConfig;
+use crate::run_config::RunConfig;
 
 /// The checkpoint format this version writes (format 1 had no manifest; it is still read,
 /// with a warning; a format-2 checkpoint without its manifest is refused).
@@ -803,7 +803,7 @@ fn check_learned_with(from: &Path, trained: &Shapes, now: &Shapes) -> anyhow::Re
              apo train --config {run}/config.toml --out <new folder>",
             from.display(),
             changes.join("; "),
-            crate::config::RESUMABLE_KEYS.join(", ")
+            crate::run_config::RESUMABLE_KEYS.join(", ")
         );
     }
     Ok(())

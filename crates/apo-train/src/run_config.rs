@@ -10,12 +10,13 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
 
+use crate::TrainConfig;
 use apo_core::{ActionKind, AlgoConfig, Algorithm};
-use apo_train::TrainConfig;
 use serde::{Deserialize, Serialize};
 
 /// The compute backend of the updates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum BackendKind {
     /// Burn's NdArray backend on the CPU.
@@ -35,7 +36,8 @@ impl fmt::Display for BackendKind {
 
 /// Where the Fisher-vector products, the proximal policy steps and the value fit run
 /// (`kernels`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum KernelsKind {
     /// The host kernels with the cpu backend, Burn's graph with wgpu.
@@ -159,7 +161,8 @@ pub enum ConfigFileError {
 
 /// A named set of settings over the defaults and a config file: defaults, then `--config`,
 /// then the preset, then `--set`. Each of its settings is also a config key of its own.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Preset {
     /// The paper's published code where it differs from our defaults (docs/algorithms.md,
     /// "The paper preset"): conjugate gradient of 100 iterations without damping, stopping
@@ -323,11 +326,11 @@ impl RunConfig {
 
     /// Checks the ranges of every field.
     pub fn validate(&self) -> Result<(), apo_core::ConfigError> {
-        if self.render_every > apo_train::config::MAX_EPOCHS {
+        if self.render_every > crate::config::MAX_EPOCHS {
             return Err(apo_core::ConfigError {
                 field: "render_every".into(),
                 value: self.render_every.to_string(),
-                rule: format!("must be ≤ {}", apo_train::config::MAX_EPOCHS),
+                rule: format!("must be ≤ {}", crate::config::MAX_EPOCHS),
             });
         }
         self.train.validate()
