@@ -312,40 +312,75 @@ pub struct EpochSplit {
     pub steps_per_s: f64,
 }
 
+/// [`update`] on the backend [`apo_train::BackendKind::dispatch`] picks, on its default device.
+#[derive(Debug, Clone, Copy)]
+pub struct UpdateBench {
+    /// Batch size.
+    pub batch: usize,
+    /// Observation dimension.
+    pub obs: usize,
+    /// Action dimension.
+    pub act: usize,
+    /// Timed repeats.
+    pub repeats: usize,
+    /// Where the Fisher-vector products and value fit run.
+    pub kernels: Kernels,
+}
+
+impl apo_train::OnBackend for UpdateBench {
+    type Output = UpdateTimings;
+
+    fn run<B: Backend>(self) -> UpdateTimings {
+        update::<B>(
+            &Default::default(),
+            self.batch,
+            self.obs,
+            self.act,
+            self.repeats,
+            self.kernels,
+        )
+    }
+}
+
 /// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards),
 /// the environments stepped on `threads` threads, and returns each epoch's time split.
 pub fn epoch(config: &apo_train::RunConfig, threads: usize) -> anyhow::Result<Vec<EpochSplit>> {
-    use std::sync::atomic::AtomicBool;
-    struct Silent;
-    impl apo_train::run::Observer for Silent {
-        fn epoch(&mut self, _: &apo_train::progress_csv::ProgressRow, _: usize) {}
+    struct Train<'a> {
+        config: &'a apo_train::RunConfig,
+        dir: &'a std::path::Path,
+        threads: usize,
+    }
+    impl apo_train::OnBackend for Train<'_> {
+        type Output = anyhow::Result<()>;
+        fn run<B: Backend>(self) -> anyhow::Result<()> {
+            let launch = apo_train::run::Launch::new(self.threads);
+            let mut run = apo_train::run::Run::<B>::create(
+                self.dir,
+                self.config.clone(),
+                &launch,
+                &Default::default(),
+                false,
+            )?;
+            let stop = std::sync::atomic::AtomicBool::new(false);
+            while run.epoch(&stop, &mut |_| {})?.is_some() {}
+            Ok(())
+        }
     }
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.subsec_nanos());
     let dir = std::env::temp_dir().join(format!("apo-bench-epoch-{}-{nanos}", std::process::id()));
-    let prepared = apo_train::run_dir::NewRunDir::prepare(&dir, false)?;
-    let stop = AtomicBool::new(false);
-    let trained = match config.backend {
-        apo_train::BackendKind::Cpu => apo_train::run::train::<burn::backend::NdArray>(
-            config,
-            &dir,
-            &Default::default(),
-            &apo_train::run::Launch::new(threads),
-            &stop,
-            &mut Silent,
-        ),
-        apo_train::BackendKind::Wgpu => apo_train::run::train::<burn::backend::Wgpu>(
-            config,
-            &dir,
-            &Default::default(),
-            &apo_train::run::Launch::new(threads),
-            &stop,
-            &mut Silent,
-        ),
-    };
+    // the run takes the prepared directory (its lock released for it) and trains in it
+    let mut prepared = apo_train::run_dir::NewRunDir::prepare(&dir, false)?;
+    drop(prepared.take_lock());
+    let trained = config.backend.dispatch(Train {
+        config,
+        dir: &dir,
+        threads,
+    });
     let rows = trained
-        .and_then(|_| apo_train::progress_csv::read(&dir.join(apo_train::run_dir::PROGRESS)));
+        .and_then(|t| t)
+        .and_then(|()| apo_train::progress_csv::read(&dir.join(apo_train::run_dir::PROGRESS)));
     prepared.discard();
     let rows = rows?;
     let mut previous = (0.0, 0u64);

@@ -140,6 +140,7 @@
 
 pub mod actor;
 pub mod atomic;
+pub mod backend;
 pub mod checkpoint;
 pub mod config;
 pub mod episodes_csv;
@@ -162,11 +163,12 @@ pub mod trainer;
 pub mod video;
 
 pub use actor::{Act, Actor, BurnActor, HostActor};
+pub use backend::{BackendKind, OnBackend};
 pub use config::{ActionMapping, EpisodeReset, EvalMetric, TrainConfig};
 pub use error::TrainError;
 pub use evaluation::{Evaluation, Evaluator};
 pub use metrics::{EpisodeRecord, EpochTimes, Phase, ProgressRow};
 pub use rollout::{action_kind, episode_stats, Collector, Episode, Rollout};
-pub use run_config::{BackendKind, RunConfig};
+pub use run_config::RunConfig;
 pub use seed::derive_seed;
 pub use trainer::{Checkpoint, EpochReport, RunState, Trainer};

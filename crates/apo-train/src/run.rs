@@ -1,49 +1,52 @@
-//! Training into a run directory: [`crate::Trainer`] epoch after epoch, with the run's
-//! files — `progress.csv`, `episodes.csv`, TensorBoard events and checkpoints — written after
-//! each epoch, and resuming from them.
+//! A training run in a directory: [`Run`] creates one (or resumes one from its files) and
+//! trains it epoch by epoch with [`Trainer`], writing after each epoch what the run keeps —
+//! `progress.csv`, `episodes.csv`, TensorBoard events, checkpoints, the best evaluation's
+//! checkpoint and the epoch videos. A run stopped at any point (a stop flag, a crash, a killed
+//! process) continues from its directory with [`Run::resume`], and the resumed run is
+//! bit-identical to one that never stopped.
+//!
+//! ```no_run
+//! use std::sync::atomic::AtomicBool;
+//! use apo_core::Algorithm;
+//! use apo_train::run::{Launch, Run};
+//! use apo_train::RunConfig;
+//! use burn::backend::NdArray;
+//!
+//! let mut config = RunConfig::defaults(Algorithm::Apo, "Pendulum-v1");
+//! config.train.epochs = 6;
+//! let stop = AtomicBool::new(false); // raise it (a signal handler) to checkpoint and stop
+//! let mut run = Run::<NdArray>::create("runs/pendulum".as_ref(), config, &Launch::new(1), &Default::default(), false)?;
+//! while let Some(row) = run.epoch(&stop, &mut |_steps| {})? {
+//!     println!("epoch {}: worst return {:?}", row.epoch, row.ep_ret_min);
+//! }
+//! // later, in another process: continue where it stopped
+//! let mut run = Run::<NdArray>::resume("runs/pendulum".as_ref(), &Launch::new(1), &Default::default(), None)?;
+//! while run.epoch(&stop, &mut |_| {})?.is_some() {}
+//! # Ok::<(), anyhow::Error>(())
+//! ```
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::{HostActor, TrainError, Trainer};
 use anyhow::{bail, Context};
 use apo_core::inference::HostPolicy;
 use apo_core::{Comm, MlpPolicyConfig};
 use burn::backend::NdArray;
 use burn::tensor::backend::Backend;
 
+use crate::atomic;
 use crate::checkpoint::{self, Shapes, TrainState, Which};
 use crate::episodes_csv::EpisodeLog;
 use crate::progress_csv::{self, ProgressRow};
 use crate::run_config::RunConfig;
+use crate::run_dir::{self, NewRunDir, RunLock};
 use crate::tensorboard::{row_scalars, EventWriter};
 use crate::video::{EpochVideos, TENSORBOARD_VIDEO_BYTES};
-
-/// How [`train`] ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TrainEnd {
-    /// All epochs ran.
-    Finished,
-    /// `stop` was raised; a checkpoint of the last completed epoch was written.
-    Interrupted {
-        /// Epochs completed.
-        epoch: usize,
-    },
-}
-
-/// Observes training progress (the CLI's progress bar).
-pub trait Observer {
-    /// Called during each epoch's rollout with the run's environment steps so far.
-    fn steps(&mut self, _env_steps: u64) {}
-    /// Called after each epoch with its row.
-    fn epoch(&mut self, row: &ProgressRow, epochs: usize);
-}
+use crate::{HostActor, TrainError, Trainer};
 
 /// How a process takes part in a run.
 #[derive(Debug, Clone)]
 pub struct Launch {
-    /// Continue the run from its latest checkpoint.
-    pub resume: bool,
     /// Threads stepping the environments (0: the cores available; results do not depend on it).
     pub threads: usize,
     /// The ranks of a data-parallel run (one by default).
@@ -51,10 +54,9 @@ pub struct Launch {
 }
 
 impl Launch {
-    /// A new run in one process, the environments stepped on `threads` threads.
+    /// A run in one process, the environments stepped on `threads` threads.
     pub fn new(threads: usize) -> Self {
         Self {
-            resume: false,
             threads,
             comm: Comm::default(),
         }
@@ -93,152 +95,334 @@ fn update_scales(config: &RunConfig) -> Vec<String> {
         .collect()
 }
 
-/// Trains (or, with `launch.resume`, continues) the run in `run_dir` on backend `B`, as rank
-/// `comm.rank()` of `comm.size()` (every rank calls it with the same arguments; rank 0 alone
-/// writes the run's files, the others only read the checkpoint when resuming). A checkpoint
-/// records the number of ranks and resuming with another is refused.
+/// What rank 0 writes after each epoch.
+struct Files {
+    progress: PathBuf,
+    episodes: EpisodeLog,
+    events: EventWriter,
+    videos: Option<EpochVideos>,
+}
+
+/// A training run in a directory, on backend `B`, with the built-in MLP policy; see the
+/// [module docs](self).
 ///
-/// Resuming checks that the checkpoint and `progress.csv` agree (rows of every completed epoch,
-/// with matching step counts) and refuses with the reason when they don't. An update that
-/// produces a non-finite value stops the run with an error, before anything of that epoch is
-/// written, keeping the last good checkpoint.
-pub fn train<B: Backend>(
-    config: &RunConfig,
-    run_dir: &Path,
-    device: &B::Device,
-    launch: &Launch,
-    stop: &AtomicBool,
-    observer: &mut dyn Observer,
-) -> anyhow::Result<TrainEnd> {
-    let Launch {
-        resume,
-        threads,
-        ref comm,
-    } = *launch;
-    if comm.rank() == 0 && resume {
-        // what a process stopped mid-write left (the caller holds the run's lock)
-        crate::run_dir::remove_stale_temps(run_dir)?;
+/// In a data-parallel run every rank makes its `Run` with the same arguments; rank 0 alone
+/// writes the run's files, the others only read the checkpoint when resuming. A checkpoint
+/// records the number of ranks and resuming with another is refused.
+pub struct Run<B: Backend> {
+    config: RunConfig,
+    dir: PathBuf,
+    trainer: Trainer<B, MlpPolicyConfig, HostActor>,
+    shapes: Shapes,
+    comm: Comm,
+    files: Option<Files>,
+    rows: Vec<ProgressRow>,
+    /// The best evaluation so far (the `best` checkpoint's).
+    best: Option<f64>,
+    /// The epoch of the last checkpoint written.
+    checkpoint_epoch: usize,
+    interrupted: bool,
+    /// A new directory, removed again when the run fails before its first epoch.
+    fresh: Option<NewRunDir>,
+    lock: Option<RunLock>,
+}
+
+impl<B: Backend> Run<B> {
+    /// Creates a new run of `config` in `dir`: the directory is made (or an empty one taken;
+    /// with `force`, an earlier run's files that apo made are replaced: see
+    /// [`NewRunDir::prepare`]), locked, and `config.toml` written into it. Nothing is left
+    /// behind when this, or the first epoch, fails.
+    ///
+    /// # Errors
+    /// A config whose run would not fit this machine's memory, an environment that cannot be
+    /// made, a directory that may not be used (naming why), a failed write.
+    pub fn create(
+        dir: &Path,
+        config: RunConfig,
+        launch: &Launch,
+        device: &B::Device,
+        force: bool,
+    ) -> anyhow::Result<Self> {
+        let spec = apo_envs::registry::spec(&config.train.env)?;
+        config.check_memory(spec.observation_dim, crate::action_kind(&spec.action_space))?;
+        if launch.comm.rank() != 0 {
+            // rank 0 prepares the directory and writes its files
+            return Self::open(config, dir, launch, device, false, None, None);
+        }
+        let mut prepared = NewRunDir::prepare(dir, force)?;
+        let lock = prepared.take_lock().context("the run directory's lock")?;
+        let config_path = dir.join(run_dir::CONFIG);
+        let written = run_dir::claim_new(dir, &[run_dir::CONFIG, run_dir::LOG]).and_then(|()| {
+            atomic::write(&config_path, config.to_toml().as_bytes())
+                .with_context(|| format!("cannot write {}", config_path.display()))
+        });
+        if let Err(e) = written {
+            drop(lock);
+            prepared.discard();
+            return Err(e);
+        }
+        Self::open(
+            config,
+            dir,
+            launch,
+            device,
+            false,
+            Some(prepared),
+            Some(lock),
+        )
     }
-    let mut trainer = Trainer::<B, _, _>::mlp(config.train.clone(), device, threads)?;
-    trainer
-        .learner_mut()
-        .set_kernels(config.kernels.resolve(config.backend));
-    let ranks = comm.size();
-    if comm.is_distributed() {
-        trainer.distribute(comm.clone())?;
+
+    /// Continues the run in `dir` from its latest checkpoint, with the `config.toml` it was
+    /// created with; `epochs` raises (or lowers) its target, which is then written into
+    /// `config.toml` so that a later resume continues to it.
+    ///
+    /// Resuming checks that the checkpoint and `progress.csv` agree (rows of every completed
+    /// epoch, with matching step counts) and refuses with the reason when they don't; epochs
+    /// after the checkpoint are run again (same seeds, same rows).
+    ///
+    /// # Errors
+    /// `dir` not a run of apo, locked by another process, a checkpoint that fails its checks
+    /// (naming the file), a config edited since the checkpoint (naming the key and both values).
+    pub fn resume(
+        dir: &Path,
+        launch: &Launch,
+        device: &B::Device,
+        epochs: Option<usize>,
+    ) -> anyhow::Result<Self> {
+        let writer = launch.comm.rank() == 0;
+        let config_path = dir.join(run_dir::CONFIG);
+        let mut config = run_dir::check_resumable(dir)?;
+        let lock = writer.then(|| RunLock::acquire(dir)).transpose()?;
+        let spec = apo_envs::registry::spec(&config.train.env)?;
+        if let Some(epochs) = epochs {
+            config.train.epochs = epochs;
+            config.validate()?;
+        }
+        config.check_memory(spec.observation_dim, crate::action_kind(&spec.action_space))?;
+        if epochs.is_some() && writer {
+            // the new target is part of the run: a later plain resume continues to it
+            atomic::write(&config_path, config.to_toml().as_bytes())
+                .with_context(|| format!("cannot write {}", config_path.display()))?;
+        }
+        Self::open(config, dir, launch, device, true, None, lock)
     }
-    let writer = comm.rank() == 0;
-    let shapes = Shapes::of(config, trainer.observation_dim(), trainer.action());
-    let save = |trainer: &Trainer<B, _, _>, keep: bool| -> anyhow::Result<TrainState> {
-        let state = TrainState::new(trainer.state().clone()).with_ranks(ranks);
+
+    /// The run's networks and counters, from the latest checkpoint when `resume`.
+    fn open(
+        config: RunConfig,
+        run_dir: &Path,
+        launch: &Launch,
+        device: &B::Device,
+        resume: bool,
+        fresh: Option<NewRunDir>,
+        lock: Option<RunLock>,
+    ) -> anyhow::Result<Self> {
+        let opened = Self::open_files(&config, run_dir, launch, device, resume);
+        match opened {
+            Ok((trainer, shapes, files, rows)) => {
+                let metric = config.train.eval_best;
+                // the best evaluation so far, from the rows kept (a resumed run picks up where it was)
+                let best = rows
+                    .iter()
+                    .filter_map(|r| r.evaluation(metric))
+                    .fold(None, |b: Option<f64>, v| Some(b.map_or(v, |b| b.max(v))));
+                Ok(Self {
+                    checkpoint_epoch: trainer.state().epoch,
+                    config,
+                    dir: run_dir.to_path_buf(),
+                    trainer,
+                    shapes,
+                    comm: launch.comm.clone(),
+                    files,
+                    rows,
+                    best,
+                    interrupted: false,
+                    fresh,
+                    lock,
+                })
+            }
+            Err(e) => {
+                if let Some(fresh) = fresh {
+                    drop(lock);
+                    fresh.discard();
+                }
+                Err(e)
+            }
+        }
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn open_files(
+        config: &RunConfig,
+        run_dir: &Path,
+        launch: &Launch,
+        device: &B::Device,
+        resume: bool,
+    ) -> anyhow::Result<(
+        Trainer<B, MlpPolicyConfig, HostActor>,
+        Shapes,
+        Option<Files>,
+        Vec<ProgressRow>,
+    )> {
+        let Launch { threads, ref comm } = *launch;
+        let writer = comm.rank() == 0;
+        if writer && resume {
+            // what a process stopped mid-write left (this process holds the run's lock)
+            crate::run_dir::remove_stale_temps(run_dir)?;
+        }
+        let mut trainer = Trainer::<B, _, _>::mlp(config.train.clone(), device, threads)?;
+        trainer
+            .learner_mut()
+            .set_kernels(config.kernels.resolve(config.backend));
+        let ranks = comm.size();
+        if comm.is_distributed() {
+            trainer.distribute(comm.clone())?;
+        }
+        let shapes = Shapes::of(config, trainer.observation_dim(), trainer.action());
+        let progress_path = run_dir.join(crate::run_dir::PROGRESS);
         if writer {
-            checkpoint::save(run_dir, trainer.learner(), &state, &shapes, keep)?;
+            // what this run will create, recorded before it exists (the run directory's marker)
+            crate::run_dir::claim_new(
+                run_dir,
+                &[
+                    crate::run_dir::PROGRESS,
+                    crate::run_dir::EPISODES,
+                    crate::run_dir::CHECKPOINTS,
+                ],
+            )?;
         }
-        Ok(state)
-    };
-    let progress_path = run_dir.join(crate::run_dir::PROGRESS);
-    if writer {
-        // what this run will create, recorded before it exists (the run directory's marker)
-        crate::run_dir::claim_new(
-            run_dir,
-            &[
-                crate::run_dir::PROGRESS,
-                crate::run_dir::EPISODES,
-                crate::run_dir::CHECKPOINTS,
-            ],
-        )?;
-    }
-    let episodes_path = run_dir.join(crate::run_dir::EPISODES);
-    let mut episodes = EpisodeLog::new(&episodes_path);
-    let mut rows = Vec::new();
-    if resume {
-        let on_disk = if writer && progress_path.exists() {
-            progress_csv::read(&progress_path)?
+        let episodes_path = run_dir.join(crate::run_dir::EPISODES);
+        let mut episodes = EpisodeLog::new(&episodes_path);
+        let mut rows = Vec::new();
+        if resume {
+            let on_disk = if writer && progress_path.exists() {
+                progress_csv::read(&progress_path)?
+            } else {
+                Vec::new()
+            };
+            match checkpoint::locate(run_dir, &Which::Latest)? {
+                Some(from) => {
+                    let state = checkpoint::load(&from, trainer.learner_mut(), &shapes, device)?;
+                    if state.ranks != ranks {
+                        bail!(
+                            "{} was written by a run on {} MPI rank(s); it continues only on as many (each rank's seeds and \
+                             share of the batch depend on it): launch it with `mpirun -n {} apo train --resume …`, not {ranks}",
+                            from.display(),
+                            state.ranks,
+                            state.ranks
+                        );
+                    }
+                    if writer {
+                        check_rows(&on_disk, &state, &progress_path, &from)?;
+                        episodes = EpisodeLog::resume(&episodes_path, state.run.epoch)?;
+                    }
+                    rows = on_disk;
+                    if rows.len() > state.run.epoch {
+                        tracing::info!(
+                            rows = rows.len(),
+                            checkpoint_epoch = state.run.epoch,
+                            "progress.csv has epochs after the checkpoint; they are run again (same seed, same rows)"
+                        );
+                        rows.truncate(state.run.epoch);
+                    }
+                    tracing::info!(epoch = state.run.epoch, checkpoint = %from.display(), "resumed from checkpoint");
+                    trainer.restore(state.run).map_err(|e| match e {
+                        TrainError::PastTheEnd { done, epochs } => anyhow::anyhow!(
+                            "the run has {done} epochs done, more than epochs = {epochs}; pass a larger --epochs"
+                        ),
+                        other => other.into(),
+                    })?;
+                }
+                None if on_disk.is_empty() || !writer => {
+                    tracing::info!("no checkpoint and no completed epoch: the run starts from epoch 0");
+                }
+                None => bail!(
+                    "{} has {} epoch rows but there is no checkpoint ({} is missing): the run cannot continue where it \
+                     stopped. Its files are kept; restore the checkpoint, or start a new run with another --out",
+                    progress_path.display(),
+                    on_disk.len(),
+                    checkpoint::dir(run_dir).join("latest").join("state.json").display()
+                ),
+            }
+        }
+        let files = if writer {
+            let events = EventWriter::create(run_dir)?;
+            if let Some(name) = events.path().file_name() {
+                crate::run_dir::claim(run_dir, &name.to_string_lossy())?;
+            }
+            let videos = EpochVideos::new(config, run_dir)?;
+            if videos.is_some() {
+                crate::run_dir::own_videos(run_dir)?;
+            }
+            Some(Files {
+                progress: progress_path,
+                episodes,
+                events,
+                videos,
+            })
         } else {
-            Vec::new()
+            None
         };
-        match checkpoint::locate(run_dir, &Which::Latest)? {
-            Some(from) => {
-                let state = checkpoint::load(&from, trainer.learner_mut(), &shapes, device)?;
-                if state.ranks != ranks {
-                    bail!(
-                        "{} was written by a run on {} MPI rank(s); it continues only on as many (each rank's seeds and \
-                         share of the batch depend on it): launch it with `mpirun -n {} apo train --resume …`, not {ranks}",
-                        from.display(),
-                        state.ranks,
-                        state.ranks
-                    );
-                }
-                if writer {
-                    check_rows(&on_disk, &state, &progress_path, &from)?;
-                    episodes = EpisodeLog::resume(&episodes_path, state.run.epoch)?;
-                }
-                rows = on_disk;
-                if rows.len() > state.run.epoch {
-                    tracing::info!(
-                        rows = rows.len(),
-                        checkpoint_epoch = state.run.epoch,
-                        "progress.csv has epochs after the checkpoint; they are run again (same seed, same rows)"
-                    );
-                    rows.truncate(state.run.epoch);
-                }
-                tracing::info!(epoch = state.run.epoch, checkpoint = %from.display(), "resumed from checkpoint");
-                trainer.restore(state.run).map_err(|e| match e {
-                    TrainError::PastTheEnd { done, epochs } => anyhow::anyhow!(
-                        "the run has {done} epochs done, more than epochs = {epochs}; pass a larger --epochs"
-                    ),
-                    other => other.into(),
-                })?;
-            }
-            None if on_disk.is_empty() || !writer => {
-                tracing::info!("no checkpoint and no completed epoch: the run starts from epoch 0");
-            }
-            None => bail!(
-                "{} has {} epoch rows but there is no checkpoint ({} is missing): the run cannot continue where it \
-                 stopped. Its files are kept; restore the checkpoint, or start a new run with another --out",
-                progress_path.display(),
-                on_disk.len(),
-                checkpoint::dir(run_dir).join("latest").join("state.json").display()
-            ),
-        }
+        Ok((trainer, shapes, files, rows))
     }
-    let mut events = writer.then(|| EventWriter::create(run_dir)).transpose()?;
-    if let Some(name) = events.as_ref().and_then(|e| e.path().file_name()) {
-        crate::run_dir::claim(run_dir, &name.to_string_lossy())?;
-    }
-    let mut videos = if writer {
-        let videos = EpochVideos::new(config, run_dir)?;
-        if videos.is_some() {
-            crate::run_dir::own_videos(run_dir)?;
+
+    /// Trains the next epoch and writes its files (after the row is in `progress.csv`, a
+    /// checkpoint when one is due); returns its row, or `None` once the run is finished or
+    /// stopped. `on_steps` gets the run's environment steps during the rollout.
+    ///
+    /// `stop` raised (by any rank of a data-parallel run) ends the run after the current
+    /// epoch — or, when it is raised during the rollout, at once, without that epoch — with a
+    /// checkpoint of the last completed epoch; [`Run::interrupted`] then says so. An update
+    /// that produces a non-finite value stops the run with an error, before anything of that
+    /// epoch is written, keeping the last good checkpoint.
+    ///
+    /// # Errors
+    /// A failed write, or the update's non-finite value (naming the settings that scale it).
+    pub fn epoch(
+        &mut self,
+        stop: &AtomicBool,
+        on_steps: &mut dyn FnMut(u64),
+    ) -> anyhow::Result<Option<ProgressRow>> {
+        let result = self.next_epoch(stop, on_steps);
+        if result.is_err() && self.rows.is_empty() {
+            // a new run that failed before its first epoch leaves nothing behind
+            if let Some(fresh) = self.fresh.take() {
+                drop(self.lock.take());
+                fresh.discard();
+            }
         }
-        videos
-    } else {
-        None
-    };
-    let mut checkpoint_epoch = trainer.state().epoch;
-    let epochs = config.train.epochs;
-    // the best evaluation so far, from the rows kept (a resumed run picks up where it was)
-    let metric = config.train.eval_best;
-    let mut best = rows
-        .iter()
-        .filter_map(|r| r.evaluation(metric))
-        .fold(None, |b: Option<f64>, v| Some(b.map_or(v, |b| b.max(v))));
-    while !trainer.finished() {
-        let report = match trainer.epoch(stop, &mut |steps| observer.steps(steps)) {
+        if !self.rows.is_empty() {
+            self.fresh = None;
+        }
+        result
+    }
+
+    fn next_epoch(
+        &mut self,
+        stop: &AtomicBool,
+        on_steps: &mut dyn FnMut(u64),
+    ) -> anyhow::Result<Option<ProgressRow>> {
+        if self.interrupted || self.trainer.finished() {
+            return Ok(None);
+        }
+        let report = match self.trainer.epoch(stop, on_steps) {
             Ok(Some(report)) => report,
             Ok(None) => {
-                let state = save(&trainer, false)
+                self.checkpoint()
                     .map_err(|e| e.context("writing the checkpoint after an interrupt"))?;
-                tracing::warn!(epoch = state.run.epoch, "interrupted; checkpoint written");
-                return Ok(TrainEnd::Interrupted {
-                    epoch: state.run.epoch,
-                });
+                tracing::warn!(
+                    epoch = self.checkpoint_epoch,
+                    "interrupted; checkpoint written"
+                );
+                self.interrupted = true;
+                return Ok(None);
             }
             Err(TrainError::NonFinite { epoch, what }) => {
-                let kept = if checkpoint_epoch > 0 {
+                let kept = if self.checkpoint_epoch > 0 {
                     format!(
-                        "The last good checkpoint (epoch {checkpoint_epoch}) is kept in {}.",
-                        checkpoint::dir(run_dir).display()
+                        "The last good checkpoint (epoch {}) is kept in {}.",
+                        self.checkpoint_epoch,
+                        checkpoint::dir(&self.dir).display()
                     )
                 } else {
                     "No epoch had completed, so nothing was saved.".to_string()
@@ -247,7 +431,7 @@ pub fn train<B: Backend>(
                     "epoch {epoch}: the update produced {what}; the run stopped without saving that epoch. {kept} \
                      The settings that scale the update, with this run's values: {}. Lower them, or check the \
                      environment's observations and rewards",
-                    update_scales(config).join(", ")
+                    update_scales(&self.config).join(", ")
                 );
             }
             Err(e) => return Err(e.into()),
@@ -271,43 +455,106 @@ pub fn train<B: Backend>(
                 "episodes ended by simulator instability"
             );
         }
-        observer.epoch(&row, epochs);
-        rows.push(row.clone());
-        if let Some(events) = &mut events {
-            progress_csv::write(&progress_path, &rows)?;
-            episodes.append(&report.episodes)?;
-            events.scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
+        self.rows.push(row.clone());
+        if let Some(files) = &mut self.files {
+            progress_csv::write(&files.progress, &self.rows)?;
+            files.episodes.append(&report.episodes)?;
+            files
+                .events
+                .scalars(row.env_steps, unix_time(), &row_scalars(&row))?;
         }
+        let metric = self.config.train.eval_best;
         if let Some(value) = row.evaluation(metric) {
             tracing::info!(epoch = row.epoch, ?metric, value, "evaluation");
-            if best.is_none_or(|b| value > b) {
-                best = Some(value);
-                if writer {
-                    let state = TrainState::new(trainer.state().clone()).with_ranks(ranks);
-                    checkpoint::save_best(run_dir, trainer.learner(), &state, &shapes)?;
+            if self.best.is_none_or(|b| value > b) {
+                self.best = Some(value);
+                if self.files.is_some() {
+                    let state = self.state();
+                    checkpoint::save_best(&self.dir, self.trainer.learner(), &state, &self.shapes)?;
                 }
             }
         }
-        if let Some(videos) = videos.as_mut().filter(|v| v.due(row.epoch)) {
-            // a video that fails is reported, never the end of the training
-            if let Err(e) = record_video(videos, &trainer, &row, events.as_mut(), stop) {
-                tracing::warn!(epoch = row.epoch, "no video of this epoch: {e:#}");
+        if let Some(files) = self.files.as_mut() {
+            if let Some(videos) = files.videos.as_mut().filter(|v| v.due(row.epoch)) {
+                // a video that fails is reported, never the end of the training
+                if let Err(e) = record_video(videos, &self.trainer, &row, &mut files.events, stop) {
+                    tracing::warn!(epoch = row.epoch, "no video of this epoch: {e:#}");
+                }
             }
         }
-        // a signal seen by any rank interrupts all of them after this epoch
+        // a stop seen by any rank interrupts all of them after this epoch
         let mut interrupted = [f64::from(u8::from(stop.load(Ordering::Relaxed)))];
-        comm.max(&mut interrupted);
-        let interrupted = interrupted[0] > 0.0;
-        if let Some(due) = trainer.checkpoint_due(interrupted) {
-            checkpoint_epoch = save(&trainer, due.keep)?.run.epoch;
+        self.comm.max(&mut interrupted);
+        self.interrupted = interrupted[0] > 0.0;
+        if let Some(due) = self.trainer.checkpoint_due(self.interrupted) {
+            self.save(due.keep)?;
         }
-        if interrupted {
-            return Ok(TrainEnd::Interrupted {
-                epoch: trainer.state().epoch,
-            });
-        }
+        Ok(Some(row))
     }
-    Ok(TrainEnd::Finished)
+
+    /// Writes a checkpoint of the run as it is now into `checkpoints/latest` (rank 0; the
+    /// other ranks write nothing). [`Run::epoch`] writes them on the run's schedule
+    /// (`checkpoint_every`) and when stopped; call it to have one at another epoch.
+    ///
+    /// # Errors
+    /// A failed write (the previous checkpoint stays complete).
+    pub fn checkpoint(&mut self) -> anyhow::Result<()> {
+        self.save(false)
+    }
+
+    fn save(&mut self, keep: bool) -> anyhow::Result<()> {
+        let state = self.state();
+        if self.files.is_some() {
+            checkpoint::save(
+                &self.dir,
+                self.trainer.learner(),
+                &state,
+                &self.shapes,
+                keep,
+            )?;
+        }
+        self.checkpoint_epoch = state.run.epoch;
+        Ok(())
+    }
+
+    fn state(&self) -> TrainState {
+        TrainState::new(self.trainer.state().clone()).with_ranks(self.comm.size())
+    }
+
+    /// Whether every epoch of the config has run.
+    pub fn finished(&self) -> bool {
+        self.trainer.finished()
+    }
+
+    /// Whether the stop flag ended the run (a checkpoint of its last epoch was written).
+    pub fn interrupted(&self) -> bool {
+        self.interrupted
+    }
+
+    /// Epochs completed.
+    pub fn epochs_done(&self) -> usize {
+        self.trainer.state().epoch
+    }
+
+    /// The run's config (as in its `config.toml`).
+    pub fn config(&self) -> &RunConfig {
+        &self.config
+    }
+
+    /// The run's directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The rows of the completed epochs (`progress.csv`).
+    pub fn rows(&self) -> &[ProgressRow] {
+        &self.rows
+    }
+
+    /// The trainer: its learner (the networks), counters and environments.
+    pub fn trainer(&self) -> &Trainer<B, MlpPolicyConfig, HostActor> {
+        &self.trainer
+    }
 }
 
 /// Records the video of the epoch of `row` with the trainer's current policy, and adds it to
@@ -316,7 +563,7 @@ fn record_video<B: Backend>(
     videos: &mut EpochVideos,
     trainer: &Trainer<B, MlpPolicyConfig, HostActor>,
     row: &ProgressRow,
-    events: Option<&mut EventWriter>,
+    events: &mut EventWriter,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
     let device = Default::default();
@@ -331,15 +578,13 @@ fn record_video<B: Backend>(
         stop,
     )?;
     tracing::info!(epoch = row.epoch, video = %path.display(), returns = ?result.returns, "video");
-    if let Some(events) = events {
-        let context = || format!("cannot read {}", path.display());
-        let length = std::fs::metadata(&path).with_context(context)?.len();
-        if length <= TENSORBOARD_VIDEO_BYTES {
-            let bytes = std::fs::read(&path).with_context(context)?;
-            events.image(row.env_steps, unix_time(), "video/episode", size, &bytes)?;
-        } else {
-            tracing::info!(video = %path.display(), bytes = length, "too large for TensorBoard");
-        }
+    let context = || format!("cannot read {}", path.display());
+    let length = std::fs::metadata(&path).with_context(context)?.len();
+    if length <= TENSORBOARD_VIDEO_BYTES {
+        let bytes = std::fs::read(&path).with_context(context)?;
+        events.image(row.env_steps, unix_time(), "video/episode", size, &bytes)?;
+    } else {
+        tracing::info!(video = %path.display(), bytes = length, "too large for TensorBoard");
     }
     Ok(())
 }

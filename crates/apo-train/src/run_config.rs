@@ -7,71 +7,12 @@
 //! type, and out-of-range values name the field and the rule.
 
 use std::collections::BTreeMap;
-use std::fmt;
 use std::path::Path;
 
+use crate::backend::{BackendKind, KernelsKind};
 use crate::TrainConfig;
 use apo_core::{ActionKind, AlgoConfig, Algorithm};
-use serde::{Deserialize, Serialize};
-
-/// The compute backend of the updates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
-#[serde(rename_all = "lowercase")]
-pub enum BackendKind {
-    /// Burn's NdArray backend on the CPU.
-    Cpu,
-    /// Burn's wgpu backend (Vulkan; a GPU, or Mesa's software rasterizer).
-    Wgpu,
-}
-
-impl fmt::Display for BackendKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            BackendKind::Cpu => "cpu",
-            BackendKind::Wgpu => "wgpu",
-        })
-    }
-}
-
-/// Where the Fisher-vector products, the proximal policy steps and the value fit run
-/// (`kernels`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
-#[serde(rename_all = "lowercase")]
-pub enum KernelsKind {
-    /// The host kernels with the cpu backend, Burn's graph with wgpu.
-    #[default]
-    Auto,
-    /// apo-core's f32 host kernels (`apo_core::Kernels::Host`).
-    Host,
-    /// Burn's graph on the run's backend (`apo_core::Kernels::Backend`).
-    Backend,
-}
-
-impl KernelsKind {
-    /// The choice for a run on `backend`.
-    pub fn resolve(self, backend: BackendKind) -> apo_core::Kernels {
-        match (self, backend) {
-            (KernelsKind::Host, _) | (KernelsKind::Auto, BackendKind::Cpu) => {
-                apo_core::Kernels::Host
-            }
-            (KernelsKind::Backend, _) | (KernelsKind::Auto, BackendKind::Wgpu) => {
-                apo_core::Kernels::Backend
-            }
-        }
-    }
-}
-
-impl fmt::Display for KernelsKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            KernelsKind::Auto => "auto",
-            KernelsKind::Host => "host",
-            KernelsKind::Backend => "backend",
-        })
-    }
-}
+use serde::Serialize;
 
 /// Everything a training run needs; written to `config.toml` in the run directory: the
 /// training loop's settings (flat, as in the file) plus where the updates run.

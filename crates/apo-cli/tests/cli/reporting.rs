@@ -3,12 +3,6 @@
 
 use std::path::Path;
 use std::process::Command;
-use std::sync::atomic::AtomicBool;
-
-use apo_core::Algorithm;
-use apo_train::progress_csv::ProgressRow;
-use apo_train::run::{self, Observer};
-use apo_train::RunConfig;
 
 use super::{fails, ok, path, train};
 
@@ -177,52 +171,6 @@ fn flags_summary_eval_logs_and_tensorboard() {
     assert!(
         err.contains("no checkpoint of epoch 7 (kept: [1, 2])"),
         "{err}"
-    );
-}
-
-/// Records the observer calls.
-#[derive(Default)]
-struct Recorder {
-    steps: Vec<u64>,
-    epochs: Vec<usize>,
-}
-
-impl Observer for Recorder {
-    fn steps(&mut self, env_steps: u64) {
-        self.steps.push(env_steps);
-    }
-
-    fn epoch(&mut self, row: &ProgressRow, _epochs: usize) {
-        self.epochs.push(row.epoch);
-    }
-}
-
-#[test]
-fn progress_advances_within_the_epoch() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let mut config = RunConfig::defaults(Algorithm::Ppo, "CartPole-v1");
-    config.train.epochs = 2;
-    config.train.steps_per_epoch = 1000;
-    let mut seen = Recorder::default();
-    let end = run::train::<burn::backend::NdArray>(
-        &config,
-        tmp.path(),
-        &Default::default(),
-        &run::Launch::new(1),
-        &AtomicBool::new(false),
-        &mut seen,
-    )
-    .expect("trains");
-    assert_eq!(end, run::TrainEnd::Finished);
-    assert_eq!(seen.epochs, vec![1, 2]);
-    let every = apo_train::rollout::PROGRESS_EVERY as u64;
-    let expected: Vec<u64> = (0..1000)
-        .step_by(every as usize)
-        .chain((1000..2000).step_by(every as usize))
-        .collect();
-    assert_eq!(
-        seen.steps, expected,
-        "steps reported every {every} steps within each epoch"
     );
 }
 

@@ -3,7 +3,8 @@
 use anyhow::Context;
 use apo_core::Algorithm;
 use apo_envs::mujoco::Physics;
-use apo_train::run_config::{BackendKind, KernelsKind, RunConfig};
+use apo_train::backend::{BackendKind, KernelsKind};
+use apo_train::run_config::RunConfig;
 use clap::Subcommand;
 
 #[derive(Subcommand)]
@@ -115,27 +116,13 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             sized
                 .check_memory(obs, apo_core::ActionKind::Continuous { dim: act })
                 .context("apo bench update --batch/--obs/--act")?;
-            let t = match backend {
-                BackendKind::Cpu => apo_cli::bench::update::<burn::backend::NdArray>(
-                    &Default::default(),
-                    batch,
-                    obs,
-                    act,
-                    repeats,
-                    kernels.resolve(backend),
-                ),
-                BackendKind::Wgpu => {
-                    crate::quiet_wgpu();
-                    apo_cli::bench::update::<burn::backend::Wgpu>(
-                        &Default::default(),
-                        batch,
-                        obs,
-                        act,
-                        repeats,
-                        kernels.resolve(backend),
-                    )
-                }
-            };
+            let t = backend.dispatch(apo_cli::bench::UpdateBench {
+                batch,
+                obs,
+                act,
+                repeats,
+                kernels: kernels.resolve(backend),
+            })?;
             println!(
                 "backend={backend} kernels={kernels} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
                 t.params
@@ -179,9 +166,6 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 spec.observation_dim,
                 apo_train::action_kind(&spec.action_space),
             )?;
-            if backend == BackendKind::Wgpu {
-                crate::quiet_wgpu();
-            }
             let split = apo_cli::bench::epoch(&config, threads)?;
             println!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend} pipeline={}", !no_pipeline);
             println!(

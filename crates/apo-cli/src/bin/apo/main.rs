@@ -192,28 +192,6 @@ fn atari_hint(error: &anyhow::Error, built_with_atari: bool) -> Option<&'static 
     )
 }
 
-/// Silences the Wayland client's "XDG_RUNTIME_DIR is invalid or not set" line, which
-/// `libwayland-client` prints when the Vulkan driver probes for a display and the variable is
-/// unset: apo never draws to a window, so it points the probe at a private, empty directory
-/// of its own (`<tmp>/apo-runtime-<uid>`, mode 0700, reused by later runs).
-fn quiet_wgpu() {
-    #[cfg(unix)]
-    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
-        use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
-        let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
-            return;
-        };
-        let dir = std::env::temp_dir().join(format!("apo-runtime-{uid}"));
-        let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
-        let private = std::fs::symlink_metadata(&dir)
-            .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0);
-        if private {
-            // SAFETY: called on the main thread before any other thread is started.
-            std::env::set_var("XDG_RUNTIME_DIR", &dir);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::atari_hint;

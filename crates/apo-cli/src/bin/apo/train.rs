@@ -8,10 +8,11 @@ use std::sync::atomic::Ordering;
 use anyhow::Context;
 use apo_core::Algorithm;
 use apo_envs::mujoco::Physics;
+use apo_train::backend::BackendKind;
 use apo_train::progress_csv::ProgressRow;
-use apo_train::run::{self, Observer, TrainEnd};
-use apo_train::run_config::{BackendKind, Preset, RunConfig};
-use apo_train::run_dir::{self, NewRunDir, RunLock};
+use apo_train::run::{Launch, Run};
+use apo_train::run_config::{Preset, RunConfig};
+use apo_train::run_dir;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::signals::{interrupted_status, Signals, STOP_GRACE};
@@ -191,28 +192,18 @@ pub fn train_on_ranks(args: TrainArgs) -> anyhow::Result<ExitCode> {
 /// `apo train` on rank `comm.rank()`: rank 0 creates (or locks) the run directory and writes
 /// in it; the other ranks build the same configuration and only read.
 fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
-    let writer = comm.rank() == 0;
-    let mut fresh = None;
-    let (config, run_dir, resume, _lock) = match &args.resume {
+    let launch = Launch {
+        threads: args.threads,
+        comm: comm.clone(),
+    };
+    let quiet = args.quiet || comm.rank() != 0;
+    let signals = Signals::install()?;
+    let (backend, create) = match &args.resume {
         Some(dir) => {
-            let config_path = dir.join(run_dir::CONFIG);
-            let mut config = run_dir::check_resumable(dir)?;
-            let lock = writer.then(|| RunLock::acquire(dir)).transpose()?;
-            let spec = apo_envs::registry::spec(&config.train.env)?;
-            if let Some(epochs) = args.epochs {
-                config.train.epochs = epochs;
-                config.validate()?;
-            }
-            config.check_memory(
-                spec.observation_dim,
-                apo_train::action_kind(&spec.action_space),
-            )?;
-            if args.epochs.is_some() && writer {
-                // the new target is part of the run: a later plain --resume continues to it
-                apo_train::atomic::write(&config_path, config.to_toml().as_bytes())
-                    .with_context(|| format!("cannot write {}", config_path.display()))?;
-            }
-            (config, dir.clone(), true, lock)
+            let config = run_dir::check_resumable(dir)?;
+            // the run's log is rank 0's; the other ranks log to stderr only
+            init_logging((comm.rank() == 0).then_some(dir.as_path()))?;
+            (config.backend, None)
         }
         None => {
             let from_file = match &args.config {
@@ -232,7 +223,7 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
             let env = args.env.clone().or(file_env).context(
                 "--env is required (see `apo list`), or a --config file with an env key",
             )?;
-            let spec = apo_envs::registry::spec(&env)?;
+            apo_envs::registry::spec(&env)?;
             apo_train::run_config::check_repeated_sets(&args.sets)?;
             let flags = args.flags(&env);
             warn_overridden(&flags, &args.sets, args.config.as_deref());
@@ -245,10 +236,6 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
                 args.config.as_deref(),
                 &sets,
             )?;
-            config.check_memory(
-                spec.observation_dim,
-                apo_train::action_kind(&spec.action_space),
-            )?;
             let dir = args.out.clone().unwrap_or_else(|| {
                 PathBuf::from(format!(
                     "runs/{}-{}-s{}",
@@ -257,126 +244,107 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
                     config.train.seed
                 ))
             });
-            if !writer {
-                // rank 0 prepares the directory and writes its files
-                return run_training(&config, &dir, false, args.threads, true, comm);
-            }
-            let mut prepared = NewRunDir::prepare(&dir, args.force)?;
-            let lock = Some(prepared.take_lock().context("the run directory's lock")?);
-            let config_path = dir.join(run_dir::CONFIG);
-            let written =
-                run_dir::claim_new(&dir, &[run_dir::CONFIG, run_dir::LOG]).and_then(|()| {
-                    apo_train::atomic::write(&config_path, config.to_toml().as_bytes())
-                        .with_context(|| format!("cannot write {}", config_path.display()))
-                });
-            if let Err(e) = written {
-                prepared.discard();
-                return Err(e);
-            }
-            fresh = Some(prepared);
-            (config, dir, false, lock)
+            (config.backend, Some((config, dir)))
         }
     };
-    let quiet = args.quiet || !writer;
-    let result = run_training(&config, &run_dir, resume, args.threads, quiet, comm);
-    if result.is_err() && !run_dir.join(run_dir::PROGRESS).exists() {
-        // a new run that failed before its first epoch leaves nothing behind
-        if let Some(prepared) = fresh {
-            drop(_lock);
-            prepared.discard();
-        }
-    }
-    result
+    let run = Open {
+        args: &args,
+        create,
+        launch: &launch,
+        signals: &signals,
+        quiet,
+    };
+    backend.dispatch(run)?
 }
 
-fn run_training(
-    config: &RunConfig,
-    run_dir: &Path,
-    resume: bool,
-    threads: usize,
+/// A run to create (its config and directory) or to resume (`--resume`), trained on a backend.
+struct Open<'a> {
+    args: &'a TrainArgs,
+    create: Option<(RunConfig, PathBuf)>,
+    launch: &'a Launch,
+    signals: &'a Signals,
     quiet: bool,
-    comm: &apo_core::Comm,
-) -> anyhow::Result<ExitCode> {
-    // the run's log is rank 0's; the other ranks log to stderr only
-    init_logging((comm.rank() == 0).then_some(run_dir))?;
-    let signals = Signals::install()?;
-    let dir = run_dir.to_path_buf();
-    let _deadline = signals.deadline(
-        STOP_GRACE,
-        Box::new(move || {
-            let kept = match apo_train::checkpoint::latest_epoch(&dir) {
-                Ok(Some(epoch)) if epoch > 0 => format!(
-                    "the run keeps its checkpoint of epoch {epoch}; continue it with `apo train --resume {}`",
-                    dir.display()
-                ),
-                _ => format!(
-                    "no epoch had completed, so there is nothing to resume; start again with `--force --out {}`",
-                    dir.display()
-                ),
-            };
-            format!(
-                "apo: the epoch did not end within {} s of the signal, so the run stopped now; {kept}",
-                STOP_GRACE.as_secs()
-            )
-        }),
-    );
-    let mut bar = Bar::new(quiet, config);
-    let launch = run::Launch {
-        resume,
-        threads,
-        comm: comm.clone(),
-    };
-    let end = match config.backend {
-        BackendKind::Cpu => run::train::<burn::backend::NdArray>(
-            config,
-            run_dir,
-            &Default::default(),
-            &launch,
-            &signals.stop,
-            &mut bar,
-        ),
-        BackendKind::Wgpu => {
-            crate::quiet_wgpu();
-            run::train::<burn::backend::Wgpu>(
-                config,
-                run_dir,
-                &Default::default(),
-                &launch,
-                &signals.stop,
-                &mut bar,
-            )
+}
+
+impl apo_train::OnBackend for Open<'_> {
+    type Output = anyhow::Result<ExitCode>;
+
+    fn run<B: burn::tensor::backend::Backend>(self) -> anyhow::Result<ExitCode> {
+        let device = Default::default();
+        let comm = &self.launch.comm;
+        let dir = match (&self.create, &self.args.resume) {
+            (Some((_, dir)), _) | (None, Some(dir)) => dir.clone(),
+            (None, None) => anyhow::bail!("neither a new run nor --resume"),
+        };
+        let _deadline = self.signals.deadline(
+            STOP_GRACE,
+            Box::new(move || {
+                let kept = match apo_train::checkpoint::latest_epoch(&dir) {
+                    Ok(Some(epoch)) if epoch > 0 => format!(
+                        "the run keeps its checkpoint of epoch {epoch}; continue it with `apo train --resume {}`",
+                        dir.display()
+                    ),
+                    _ => format!(
+                        "no epoch had completed, so there is nothing to resume; start again with `--force --out {}`",
+                        dir.display()
+                    ),
+                };
+                format!(
+                    "apo: the epoch did not end within {} s of the signal, so the run stopped now; {kept}",
+                    STOP_GRACE.as_secs()
+                )
+            }),
+        );
+        let mut run = match self.create {
+            Some((config, dir)) => {
+                let run = Run::<B>::create(&dir, config, self.launch, &device, self.args.force)?;
+                init_logging((comm.rank() == 0).then_some(dir.as_path()))?;
+                run
+            }
+            None => {
+                let dir = self.args.resume.as_deref().context("--resume")?;
+                Run::<B>::resume(dir, self.launch, &device, self.args.epochs)?
+            }
+        };
+        let mut bar = Bar::new(self.quiet, run.config());
+        let epochs = run.config().train.epochs;
+        loop {
+            let row = run.epoch(&self.signals.stop, &mut |steps| bar.steps(steps));
+            match row {
+                Ok(Some(row)) => bar.epoch(&row, epochs),
+                Ok(None) => break,
+                Err(e) => {
+                    bar.abandon();
+                    return Err(e);
+                }
+            }
         }
-    };
-    if let Some(bar) = &bar.bar {
         bar.abandon();
-    }
-    match end? {
-        TrainEnd::Finished => {
+        let run_dir = run.dir();
+        if !run.interrupted() {
             if comm.rank() == 0 {
                 println!("run finished: {}", run_dir.display());
             }
-            Ok(ExitCode::SUCCESS)
+            return Ok(ExitCode::SUCCESS);
         }
-        TrainEnd::Interrupted { epoch } => {
-            let signal = signals.which.load(Ordering::SeqCst);
-            let name = match signal {
-                s if s == signal_hook::consts::SIGTERM as usize => "SIGTERM",
-                _ => "SIGINT",
+        let signal = self.signals.which.load(Ordering::SeqCst);
+        let name = match signal {
+            s if s == signal_hook::consts::SIGTERM as usize => "SIGTERM",
+            _ => "SIGINT",
+        };
+        if comm.rank() == 0 {
+            let launcher = if comm.is_distributed() {
+                format!("mpirun -n {} ", comm.size())
+            } else {
+                String::new()
             };
-            if comm.rank() == 0 {
-                let launcher = if comm.is_distributed() {
-                    format!("mpirun -n {} ", comm.size())
-                } else {
-                    String::new()
-                };
-                println!(
-                    "interrupted by {name} after epoch {epoch} of {}; checkpoint written. Continue with: {launcher}apo train --resume {}",
-                    config.train.epochs,
-                    run_dir.display()
-                );
-            }
-            Ok(ExitCode::from(interrupted_status(signal)))
+            println!(
+                "interrupted by {name} after epoch {} of {epochs}; checkpoint written. Continue with: {launcher}apo train --resume {}",
+                run.epochs_done(),
+                run_dir.display()
+            );
         }
+        Ok(ExitCode::from(interrupted_status(signal)))
     }
 }
 
@@ -412,7 +380,13 @@ impl Bar {
     }
 }
 
-impl Observer for Bar {
+impl Bar {
+    fn abandon(&self) {
+        if let Some(bar) = &self.bar {
+            bar.abandon();
+        }
+    }
+
     fn steps(&mut self, env_steps: u64) {
         if let Some(bar) = &self.bar {
             bar.set_position(env_steps);

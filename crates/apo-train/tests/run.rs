@@ -1,0 +1,202 @@
+//! A run in a directory through the public API: created, trained, stopped, dropped, resumed
+//! from its files — bit-identical to a run that never stopped — and the progress it reports.
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use apo_core::Algorithm;
+use apo_train::progress_csv::{self, ProgressRow};
+use apo_train::run::{Launch, Run};
+use apo_train::RunConfig;
+use burn::backend::NdArray;
+
+fn small(algo: Algorithm, env: &str, epochs: usize) -> RunConfig {
+    let mut config = RunConfig::defaults(algo, env);
+    config.train.epochs = epochs;
+    config.train.steps_per_epoch = 200;
+    config.train.num_envs = 2;
+    config.train.hidden = vec![16];
+    config
+}
+
+/// Trains the run in `dir` to its end, or for `epochs` epochs when given; returns the rows.
+fn train(run: &mut Run<NdArray>, epochs: Option<usize>) -> Vec<ProgressRow> {
+    let stop = AtomicBool::new(false);
+    let mut rows = Vec::new();
+    while epochs.is_none_or(|n| rows.len() < n) {
+        match run.epoch(&stop, &mut |_| {}).expect("an epoch") {
+            Some(row) => rows.push(row),
+            None => break,
+        }
+    }
+    rows
+}
+
+fn timeless(rows: Vec<ProgressRow>) -> Vec<ProgressRow> {
+    rows.into_iter().map(ProgressRow::timeless).collect()
+}
+
+fn rows_on_disk(dir: &Path) -> Vec<ProgressRow> {
+    timeless(progress_csv::read(&dir.join("progress.csv")).expect("progress.csv"))
+}
+
+#[test]
+fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_stopped() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let device = Default::default();
+    for algo in [Algorithm::Apo, Algorithm::Ppo] {
+        let (straight, split) = (
+            tmp.path().join(format!("{algo}-straight")),
+            tmp.path().join(format!("{algo}-split")),
+        );
+        let config = small(algo, "CartPole-v1", 6);
+        let mut run =
+            Run::<NdArray>::create(&straight, config.clone(), &Launch::new(1), &device, false)
+                .expect("a new run");
+        assert_eq!(train(&mut run, None).len(), 6);
+        assert!(run.finished() && !run.interrupted());
+        let params = (
+            run.trainer().learner().policy_params(),
+            run.trainer().learner().value_params(),
+        );
+        drop(run);
+
+        let mut run = Run::<NdArray>::create(&split, config, &Launch::new(1), &device, false)
+            .expect("a new run");
+        assert_eq!(train(&mut run, Some(3)).len(), 3);
+        run.checkpoint().expect("a checkpoint");
+        drop(run);
+        let mut run =
+            Run::<NdArray>::resume(&split, &Launch::new(1), &device, None).expect("resumes");
+        assert_eq!(run.epochs_done(), 3);
+        assert_eq!(train(&mut run, None).len(), 3);
+        assert!(run.finished());
+        assert_eq!(
+            (
+                run.trainer().learner().policy_params(),
+                run.trainer().learner().value_params()
+            ),
+            params,
+            "{algo}: the networks after 3 + 3 epochs equal those after 6"
+        );
+        drop(run);
+        assert_eq!(
+            rows_on_disk(&split),
+            rows_on_disk(&straight),
+            "{algo}: progress.csv"
+        );
+        let episodes = |dir: &Path| std::fs::read(dir.join("episodes.csv")).expect("episodes.csv");
+        assert_eq!(
+            episodes(&split),
+            episodes(&straight),
+            "{algo}: episodes.csv"
+        );
+    }
+}
+
+#[test]
+fn a_raised_stop_checkpoints_the_epoch_and_resume_raises_the_target() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let dir = tmp.path().join("run");
+    let device = Default::default();
+    let mut run = Run::<NdArray>::create(
+        &dir,
+        small(Algorithm::Trpo, "CartPole-v1", 3),
+        &Launch::new(1),
+        &device,
+        false,
+    )
+    .expect("a new run");
+    let stop = AtomicBool::new(false);
+    assert!(run.epoch(&stop, &mut |_| {}).expect("epoch 1").is_some());
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    // the epoch under way ends (its rollout may be in already: the pipelined schedule), then
+    // the run stops with a checkpoint of it
+    while run.epoch(&stop, &mut |_| {}).expect("stopping").is_some() {}
+    assert!(run.interrupted() && !run.finished());
+    let done = run.epochs_done();
+    assert!((1..=2).contains(&done), "{done}");
+    drop(run);
+    assert_eq!(
+        apo_train::checkpoint::latest_epoch(&dir).expect("readable"),
+        Some(done)
+    );
+    // a locked run is not resumed twice; a dropped one is
+    let mut run = Run::<NdArray>::resume(&dir, &Launch::new(1), &device, Some(4)).expect("resumes");
+    let err = Run::<NdArray>::resume(&dir, &Launch::new(1), &device, None)
+        .err()
+        .expect("the run is locked");
+    assert!(
+        format!("{err:#}").contains("in use by another apo process"),
+        "{err:#}"
+    );
+    assert_eq!(
+        train(&mut run, None).len(),
+        4 - done,
+        "epochs {}..=4",
+        done + 1
+    );
+    drop(run);
+    let config = RunConfig::load(&dir.join("config.toml")).expect("config.toml");
+    assert_eq!(config.train.epochs, 4, "the new target is the run's");
+}
+
+#[test]
+fn a_new_run_is_refused_in_a_folder_of_the_users_without_touching_it() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let device = Default::default();
+    let mine = tmp.path().join("mine");
+    std::fs::create_dir(&mine).expect("mkdir");
+    std::fs::write(mine.join("notes.txt"), "mine").expect("write");
+    let err = Run::<NdArray>::create(
+        &mine,
+        small(Algorithm::Apo, "Pendulum-v1", 1),
+        &Launch::new(1),
+        &device,
+        true,
+    )
+    .err()
+    .expect("refused");
+    assert!(format!("{err:#}").contains("marker"), "{err:#}");
+    assert_eq!(
+        std::fs::read_to_string(mine.join("notes.txt")).expect("kept"),
+        "mine"
+    );
+    assert_eq!(
+        std::fs::read_dir(&mine).expect("ls").count(),
+        1,
+        "nothing written"
+    );
+}
+
+#[test]
+fn progress_advances_within_the_epoch() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mut config = RunConfig::defaults(Algorithm::Ppo, "CartPole-v1");
+    config.train.epochs = 2;
+    config.train.steps_per_epoch = 1000;
+    let mut run = Run::<NdArray>::create(
+        tmp.path(),
+        config,
+        &Launch::new(1),
+        &Default::default(),
+        false,
+    )
+    .expect("a new run");
+    let (mut steps, mut epochs) = (Vec::new(), Vec::new());
+    let stop = AtomicBool::new(false);
+    while let Some(row) = run.epoch(&stop, &mut |s| steps.push(s)).expect("an epoch") {
+        epochs.push(row.epoch);
+    }
+    assert!(run.finished());
+    assert_eq!(epochs, vec![1, 2]);
+    let every = apo_train::rollout::PROGRESS_EVERY as u64;
+    let expected: Vec<u64> = (0..1000)
+        .step_by(every as usize)
+        .chain((1000..2000).step_by(every as usize))
+        .collect();
+    assert_eq!(
+        steps, expected,
+        "steps reported every {every} steps within each epoch"
+    );
+}
