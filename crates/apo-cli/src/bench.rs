@@ -103,8 +103,8 @@ pub fn update<B: Backend>(
     let robust = ApoConfig {
         penalty_units: PenaltyUnits::Advantage,
         switch: Switch::Off,
-        omega1: 0.01,
-        omega2: 0.005,
+        omega1: apo_train::run_config::ROBUST_OMEGA.0,
+        omega2: apo_train::run_config::ROBUST_OMEGA.1,
         ..ApoConfig::paper_defaults()
     };
     let configs = [

@@ -574,6 +574,44 @@ mod tests {
         out
     }
 
+    /// The built-in MLP has three forms, one description: Burn's [`crate::mlp::Mlp`] (the
+    /// module the learner trains and checkpoints), [`crate::inference::HostMlp`] (the
+    /// rollout's per-step forward pass, a few rows at a time, row by row) and [`HostNet`] (the
+    /// update's batched forward, reverse and tangent passes, split in parts). The host forms
+    /// are built from `Mlp::host_layers`, so the three must compute the same function.
+    #[test]
+    fn the_three_forms_of_the_mlp_compute_the_same_function() {
+        use burn::backend::NdArray;
+        use burn::tensor::{Tensor, TensorData};
+        let device = Default::default();
+        let (input, hidden, output, n) = (5, [16, 8], 3, 40);
+        <NdArray as burn::tensor::backend::Backend>::seed(&device, 3);
+        let mlp = crate::mlp::Mlp::<NdArray>::new(input, &hidden, output, &device);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        let x: Vec<f32> = (0..n * input)
+            .map(|_| rng.random_range(-2.0..2.0))
+            .collect();
+        let burn: Vec<f32> = mlp
+            .forward(Tensor::from_data(
+                TensorData::new(x.clone(), [n, input]),
+                &device,
+            ))
+            .into_data()
+            .iter::<f32>()
+            .collect();
+        let layers = mlp.host_layers();
+        let host_mlp = crate::inference::HostMlp::from_mlp(&mlp)
+            .forward(&x, n)
+            .to_vec();
+        let mut net = HostNet::new(&layers).expect("shapes chain");
+        let host_net = forward_all(&mut net, &x);
+        for (form, out) in [("HostMlp", &host_mlp), ("HostNet", &host_net)] {
+            assert_eq!(out.len(), burn.len(), "{form}");
+            let err = rel_err(&widen(out), &widen(&burn));
+            assert!(err <= 1e-5, "{form} differs from Burn's Mlp by {err:e}");
+        }
+    }
+
     #[test]
     fn forward_backward_and_jvp_match_f64_references_in_one_and_several_parts() {
         let sizes = [5, 7, 6, 3];

@@ -28,7 +28,13 @@ struct HostLayer {
     output: usize,
 }
 
-/// A host copy of an [`Mlp`].
+/// A host copy of an [`Mlp`] for the rollout's forward pass, a few rows per call (one per
+/// environment). It differs from the update's [`crate::host_net::HostNet`], which holds the
+/// same layers for batches of thousands of rows with reverse and tangent passes split over
+/// threads: here a call costs microseconds and must allocate nothing, so it is plain row
+/// loops over one scratch pair. Both are built from [`Mlp::host_layers`];
+/// `host_net`'s test `the_three_forms_of_the_mlp_compute_the_same_function` checks that they
+/// agree with Burn's module.
 #[derive(Debug, Clone)]
 pub struct HostMlp {
     layers: Vec<HostLayer>,
@@ -132,10 +138,7 @@ impl HostPolicy {
 
     /// Width of the distribution parameters per row.
     pub fn dist_width(&self) -> usize {
-        match self.action {
-            ActionKind::Continuous { dim } => 2 * dim,
-            ActionKind::Discrete { n } => n,
-        }
+        self.action.dist_width()
     }
 
     /// Width of an action as the environment takes it.
@@ -190,10 +193,7 @@ impl ActBuffers {
         rng: &mut impl Rng,
     ) {
         let width = action.width();
-        let (dist_width, env_width) = match action {
-            ActionKind::Continuous { dim } => (2 * dim, dim),
-            ActionKind::Discrete { n } => (n, 1),
-        };
+        let (dist_width, env_width) = (action.dist_width(), action.env_width());
         self.actions.resize(n * width, 0.0);
         self.env_actions.resize(n * env_width, 0.0);
         self.logp.resize(n, 0.0);

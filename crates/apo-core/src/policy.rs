@@ -163,6 +163,23 @@ impl ActionKind {
             ActionKind::Discrete { n } => n,
         }
     }
+
+    /// Width of one state's distribution parameters: a Gaussian's means and log-stds
+    /// (`2 · dim`), a categorical's logits (`n`).
+    pub fn dist_width(&self) -> usize {
+        match *self {
+            ActionKind::Continuous { dim } => 2 * dim,
+            ActionKind::Discrete { n } => n,
+        }
+    }
+
+    /// Width of one environment action: `dim` floats, or one index.
+    pub fn env_width(&self) -> usize {
+        match *self {
+            ActionKind::Continuous { dim } => dim,
+            ActionKind::Discrete { .. } => 1,
+        }
+    }
 }
 
 /// Config of the built-in MLP policy (the paper's: tanh, (64, 64), state-independent log-std).

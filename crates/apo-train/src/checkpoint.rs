@@ -22,9 +22,9 @@ use std::path::{Path, PathBuf};
 
 use crate::RunState;
 use anyhow::{bail, Context};
-use apo_core::{ActionKind, Learner, MlpPolicyConfig, Multipliers, PolicyFamily};
+use apo_core::{ActionKind, Learner, Multipliers, PolicyFamily};
 use burn::backend::Autodiff;
-use burn::module::Module;
+use burn::module::{AutodiffModule, Module};
 use burn::optim::Optimizer;
 use burn::record::{FullPrecisionSettings, NamedMpkBytesRecorder, NamedMpkFileRecorder, Recorder};
 use burn::tensor::backend::Backend;
@@ -245,13 +245,16 @@ pub fn kept_epochs(run: &Path) -> Vec<usize> {
 
 /// Writes a checkpoint of `learner` and `state` into `run`'s `checkpoints/latest`,
 /// atomically and durably; with `keep`, also keeps a copy as `checkpoints/epoch-<N>`.
-pub fn save<B: Backend>(
+pub fn save<B: Backend, F: PolicyFamily>(
     run: &Path,
-    learner: &Learner<B, MlpPolicyConfig>,
+    learner: &Learner<B, F>,
     state: &TrainState,
     shapes: &Shapes,
     keep: bool,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<()>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
     let root = own_root(run)?;
     clear_unfinished(&root)?;
     let tmp = root.join(format!(".tmp-{}", state.run.epoch));
@@ -280,12 +283,15 @@ pub fn save<B: Backend>(
 /// Writes a checkpoint of `learner` and `state` into `run`'s `checkpoints/best` (the best
 /// evaluation so far), replacing the one there atomically: a crash leaves the old or the new
 /// one complete (or, between the two renames, the old one as `checkpoints/.old-best`).
-pub fn save_best<B: Backend>(
+pub fn save_best<B: Backend, F: PolicyFamily>(
     run: &Path,
-    learner: &Learner<B, MlpPolicyConfig>,
+    learner: &Learner<B, F>,
     state: &TrainState,
     shapes: &Shapes,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<()>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
     let root = own_root(run)?;
     let tmp = root.join(".tmp-best");
     clear(&tmp)?;
@@ -451,12 +457,15 @@ fn write_synced(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 
 /// Writes and syncs every file of a checkpoint into the fresh directory `tmp`; on an error
 /// (a full disk), what was written of it is removed.
-fn write_into<B: Backend>(
+fn write_into<B: Backend, F: PolicyFamily>(
     tmp: &Path,
-    learner: &Learner<B, MlpPolicyConfig>,
+    learner: &Learner<B, F>,
     state: &TrainState,
     shapes: &Shapes,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<()>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
     let written = write_files(tmp, learner, state, shapes);
     if written.is_err() {
         let _ = clear(tmp);
@@ -465,12 +474,15 @@ fn write_into<B: Backend>(
 }
 
 /// [`write_into`]'s work.
-fn write_files<B: Backend>(
+fn write_files<B: Backend, F: PolicyFamily>(
     tmp: &Path,
-    learner: &Learner<B, MlpPolicyConfig>,
+    learner: &Learner<B, F>,
     state: &TrainState,
     shapes: &Shapes,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<()>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
     clear(tmp)?;
     std::fs::create_dir_all(tmp)?;
     let (policy, value) = learner.networks();
@@ -578,12 +590,15 @@ pub fn latest_epoch(run: &Path) -> anyhow::Result<Option<usize>> {
 
 /// Loads checkpoint `from` (a directory from [`locate`]) into `learner` after checking its
 /// files against their manifest and its shapes against `shapes`; returns its counters.
-pub fn load<B: Backend>(
+pub fn load<B: Backend, F: PolicyFamily>(
     from: &Path,
-    learner: &mut Learner<B, MlpPolicyConfig>,
+    learner: &mut Learner<B, F>,
     shapes: &Shapes,
     device: &B::Device,
-) -> anyhow::Result<TrainState> {
+) -> anyhow::Result<TrainState>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
     let state_path = from.join(STATE);
     let text = crate::input::read_text(
         &state_path,

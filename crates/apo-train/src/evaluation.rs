@@ -45,8 +45,6 @@ pub struct Evaluator {
     episodes: usize,
     deterministic: bool,
     seed: u64,
-    obs: Vec<f32>,
-    act: ActBuffers,
 }
 
 impl Evaluator {
@@ -70,14 +68,11 @@ impl Evaluator {
     /// The evaluator of `config` (`eval_episodes`, `eval_deterministic`, `seed`) on `env`, any
     /// [`Env`], registered or not (`eval_every` is not read).
     pub fn with_env(env: Box<dyn Env>, config: &TrainConfig) -> Self {
-        let obs = vec![0.0; env.observation_space().flat_dim()];
         Self {
             env,
             episodes: config.eval_episodes,
             deterministic: config.eval_deterministic,
             seed: config.seed,
-            obs,
-            act: ActBuffers::default(),
         }
     }
 
@@ -89,49 +84,130 @@ impl Evaluator {
         normalizer: Option<&RunningMeanStd>,
         k: f64,
     ) -> Evaluation {
-        let first = derive_seed(self.seed, 0, RESET_STREAM);
-        let mut rng = StdRng::seed_from_u64(derive_seed(self.seed, 0, ACTION_STREAM));
-        let mut episodes = Vec::with_capacity(self.episodes);
-        let space = self.env.action_space().clone();
-        for episode in 0..self.episodes {
-            let seed = first.wrapping_add(episode as u64);
-            self.env.reset(Some(seed), &mut self.obs);
-            let (mut ret, mut len, mut judged) = (0.0, 0, false);
-            loop {
-                if let Some(rms) = normalizer {
-                    rms.normalize(&mut self.obs);
-                }
-                actor.act(&self.obs, 1, self.deterministic, &mut rng, &mut self.act);
-                let t = match space {
-                    Space::Discrete { .. } => self.env.step(
-                        Action::Discrete(self.act.env_actions[0] as usize),
-                        &mut self.obs,
-                    ),
-                    Space::Box { .. } => self
-                        .env
-                        .step(Action::Continuous(&self.act.env_actions), &mut self.obs),
-                };
-                ret += t.reward;
-                len += 1;
-                judged |= t.info.success.is_some();
-                if t.done() {
-                    episodes.push(Episode {
-                        env: 0,
-                        seed,
-                        nth: 0,
-                        ret,
-                        length: len,
-                        unstable: t.info.unstable,
-                        success: judged.then_some(t.info.success == Some(true) && !t.info.unstable),
-                    });
-                    break;
-                }
-            }
-        }
+        let plays = Plays {
+            count: self.episodes,
+            deterministic: self.deterministic,
+            first_reset: derive_seed(self.seed, 0, RESET_STREAM),
+            action_seed: derive_seed(self.seed, 0, ACTION_STREAM),
+        };
+        let act = &mut |obs: &[f32], deterministic, rng: &mut StdRng, out: &mut ActBuffers| {
+            actor.act(obs, 1, deterministic, rng, out)
+        };
+        let played = play_episodes(self.env.as_mut(), act, normalizer, &plays, &mut |_, _| {
+            Ok::<(), std::convert::Infallible>(())
+        });
+        let episodes = match played {
+            Ok(episodes) => episodes,
+            Err(never) => match never {},
+        };
         Evaluation {
             stats: episode_stats(&episodes, k),
             unstable: episodes.iter().filter(|e| e.unstable).count(),
             episodes,
         }
     }
+}
+
+/// How [`play_episodes`] picks an action: `(obs [1, observation_dim], deterministic, rng,
+/// out)`, as [`Act::act`] with one row.
+pub type ActOne<'a> = dyn FnMut(&[f32], bool, &mut StdRng, &mut ActBuffers) + 'a;
+
+/// Which episodes [`play_episodes`] plays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Plays {
+    /// How many.
+    pub count: usize,
+    /// Act with the mean (Gaussian) or most likely (categorical) action.
+    pub deterministic: bool,
+    /// Episode `i` starts from `reset(first_reset + i)`.
+    pub first_reset: u64,
+    /// Sampled actions draw from `StdRng::seed_from_u64(action_seed)`.
+    pub action_seed: u64,
+}
+
+/// Where an episode is, after a reset or a step: what [`play_episodes`] shows its observer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Moment {
+    /// The episode, from 0.
+    pub episode: usize,
+    /// Steps taken in the episode.
+    pub step: usize,
+    /// The last step's reward (0 after a reset).
+    pub reward: f64,
+    /// The undiscounted return so far.
+    pub ret: f64,
+    /// Whether the episode ended with the last step.
+    pub done: bool,
+}
+
+/// Plays the episodes `plays` names on `env`, one at a time: `act(obs [1, observation_dim],
+/// deterministic, rng, out)` picks each action from the observation normalized by `normalizer`
+/// (not updated), and `observe` sees the environment after each reset and each step (a video
+/// draws its frames there). The one episode loop of apo: evaluation during training
+/// ([`Evaluator`]), `apo eval` and `apo render` ([`crate::playback`]) and the epoch videos.
+/// Every episode counts: one ended by a simulator instability is returned with the return it
+/// had reached, flagged.
+///
+/// # Errors
+/// The observer's, which stop the episodes.
+pub fn play_episodes<E>(
+    env: &mut dyn Env,
+    act: &mut ActOne<'_>,
+    normalizer: Option<&RunningMeanStd>,
+    plays: &Plays,
+    observe: &mut dyn FnMut(&mut dyn Env, &Moment) -> Result<(), E>,
+) -> Result<Vec<Episode>, E> {
+    let mut rng = StdRng::seed_from_u64(plays.action_seed);
+    let mut obs = vec![0.0f32; env.observation_space().flat_dim()];
+    let mut out = ActBuffers::default();
+    let mut episodes = Vec::with_capacity(plays.count);
+    for episode in 0..plays.count {
+        let seed = plays.first_reset.wrapping_add(episode as u64);
+        env.reset(Some(seed), &mut obs);
+        let (mut ret, mut length, mut judged) = (0.0, 0, false);
+        let mut moment = Moment {
+            episode,
+            step: 0,
+            reward: 0.0,
+            ret,
+            done: false,
+        };
+        observe(env, &moment)?;
+        loop {
+            if let Some(rms) = normalizer {
+                rms.normalize(&mut obs);
+            }
+            act(&obs, plays.deterministic, &mut rng, &mut out);
+            let t = match env.action_space() {
+                Space::Discrete { .. } => {
+                    env.step(Action::Discrete(out.env_actions[0] as usize), &mut obs)
+                }
+                Space::Box { .. } => env.step(Action::Continuous(&out.env_actions), &mut obs),
+            };
+            ret += t.reward;
+            length += 1;
+            judged |= t.info.success.is_some();
+            moment = Moment {
+                step: length,
+                reward: t.reward,
+                ret,
+                done: t.done(),
+                ..moment
+            };
+            observe(env, &moment)?;
+            if t.done() {
+                episodes.push(Episode {
+                    env: 0,
+                    seed,
+                    nth: 0,
+                    ret,
+                    length,
+                    unstable: t.info.unstable,
+                    success: judged.then_some(t.info.success == Some(true) && !t.info.unstable),
+                });
+                break;
+            }
+        }
+    }
+    Ok(episodes)
 }

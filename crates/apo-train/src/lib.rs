@@ -1,10 +1,23 @@
 #![warn(missing_docs)]
 //! # apo-train
 //!
-//! The training loop of apo as a library, for your own Rust programs (the `apo` command line
-//! is a thin layer over it that adds run directories, checkpoints files, plots and printing):
+//! A training run of apo as a library, for your own Rust programs: the epoch loop, and a run in
+//! a directory with everything the `apo` command line keeps of it (the command line adds
+//! argument parsing, printing, plots, reports and sweeps):
 //!
-//! * [`config`] — [`TrainConfig`], a run's settings as a plain struct, with the paper's defaults;
+//! * [`run`] — [`Run`]: a run in a directory — created, trained epoch by epoch, checkpointed,
+//!   resumed bit-exactly from its files — with the built-in MLP or your own policy (story 4);
+//! * [`run_config`] — [`RunConfig`]: the whole run's settings (TOML, `key=value` overrides,
+//!   presets, every key documented with its range, the memory estimate);
+//! * [`run_dir`], [`checkpoint`], [`progress_csv`], [`episodes_csv`], [`tensorboard`],
+//!   [`video`] — the files of a run: its directory (ownership marker, lock, the one removal
+//!   rule), verified atomic checkpoints, the per-epoch and per-episode records, TensorBoard
+//!   events, epoch videos; [`atomic`], [`removal`] and [`input`] are the rules they write,
+//!   remove and read files by;
+//! * [`playback`] — a run's policy loaded from a checkpoint and played for episodes;
+//! * [`backend`] — [`BackendKind`] and the one dispatch from it to a Burn backend type;
+//! * [`config`] — [`TrainConfig`], the training loop's settings as a plain struct, with the
+//!   paper's defaults;
 //! * [`actor`] — how the rollout acts: the [`Act`] / [`Actor`] traits, the fast host MLP
 //!   ([`HostActor`]) and any Burn [`Policy`](apo_core::Policy) module ([`BurnActor`]);
 //! * [`rollout`] — [`Collector`]: steps a vector of environments with one batched actor call
@@ -137,6 +150,46 @@
 //! assert_eq!(epoch.row.env_steps, 200);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! # 4. A run in a directory: stop, drop everything, resume
+//!
+//! [`Run`] keeps a run's files in a directory; a run stopped after any epoch (a stop flag, a
+//! crash, a killed process) continues from the directory alone, and ends exactly where the
+//! run that never stopped ends. With your own policy family, [`Run::create_with`] and
+//! [`Run::resume_with`] take the function that makes the [`Trainer`] (e.g. `|config, threads|
+//! Trainer::new(config, &device, threads, family)`).
+//!
+//! ```
+//! use apo_core::Algorithm;
+//! use apo_train::{Launch, Run, RunConfig};
+//! use burn::backend::NdArray;
+//! use std::sync::atomic::AtomicBool;
+//!
+//! let dir = std::env::temp_dir().join(format!("apo-doc-run-{}", std::process::id()));
+//! let mut config = RunConfig::defaults(Algorithm::Apo, "CartPole-v1");
+//! config.train.epochs = 4;
+//! config.train.steps_per_epoch = 200;
+//! let (device, launch, stop) = (Default::default(), Launch::new(1), AtomicBool::new(false));
+//!
+//! let mut run = Run::<NdArray>::create(&dir, config, &launch, &device, false)?;
+//! run.epoch(&stop, &mut |_| {})?; // epoch 1
+//! run.epoch(&stop, &mut |_| {})?; // epoch 2
+//! run.checkpoint()?;
+//! drop(run); // or the process ends
+//!
+//! let mut run = Run::<NdArray>::resume(&dir, &launch, &device, None)?;
+//! while let Some(row) = run.epoch(&stop, &mut |_| {})? {
+//!     println!("epoch {}: worst return {:?}", row.epoch, row.ep_ret_min);
+//! }
+//! assert!(run.finished() && run.epochs_done() == 4);
+//! # drop(run);
+//! # std::fs::remove_dir_all(&dir)?;
+//! # Ok::<(), anyhow::Error>(())
+//! ```
+//!
+//! `tests/run.rs` checks that the resumed run's networks, `progress.csv` and `episodes.csv`
+//! equal those of a run that never stopped, and the workspace's outside crate
+//! (`tests/external-user`) does the same with the built-in MLP and with a `burn::nn` policy.
 
 pub mod actor;
 pub mod atomic;
@@ -169,6 +222,7 @@ pub use error::TrainError;
 pub use evaluation::{Evaluation, Evaluator};
 pub use metrics::{EpisodeRecord, EpochTimes, Phase, ProgressRow};
 pub use rollout::{action_kind, episode_stats, Collector, Episode, Rollout};
+pub use run::{Launch, Run};
 pub use run_config::RunConfig;
 pub use seed::derive_seed;
 pub use trainer::{Checkpoint, EpochReport, RunState, Trainer};

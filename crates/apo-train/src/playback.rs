@@ -5,13 +5,14 @@ use std::path::Path;
 use anyhow::Context;
 use apo_core::inference::{ActBuffers, HostPolicy};
 use apo_core::Learner;
-use apo_envs::{Action, Env, RunningMeanStd, Space};
+use apo_envs::{Env, RunningMeanStd};
 use burn::backend::NdArray;
 use rand::rngs::StdRng;
-use rand::SeedableRng;
 
 use crate::action_kind;
 use crate::checkpoint::{self, Shapes, Which};
+pub use crate::evaluation::Moment;
+use crate::evaluation::Plays;
 use crate::run_config::RunConfig;
 
 /// Returns of evaluation episodes.
@@ -39,22 +40,6 @@ impl EvalResult {
             .fold((0usize, 0usize), |(j, s), &ok| (j + 1, s + usize::from(ok)));
         (judged > 0).then(|| succeeded as f64 / judged as f64)
     }
-}
-
-/// Where an evaluation episode is, as [`play_episodes`] tells its observer: after a reset
-/// (`step == 0`) and after every step.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Moment {
-    /// The episode, from 0.
-    pub episode: usize,
-    /// Steps taken in the episode.
-    pub step: usize,
-    /// The last step's reward (0 after a reset).
-    pub reward: f64,
-    /// The undiscounted return so far.
-    pub ret: f64,
-    /// Whether the episode ended with the last step.
-    pub done: bool,
 }
 
 /// Runs `episodes` episodes of the policy in checkpoint `which` of `run_dir` (on the CPU),
@@ -178,9 +163,10 @@ pub struct Episodes {
     pub seed: u64,
 }
 
-/// Plays `episodes` of `policy` on `env`, normalizing observations with `normalizer` (not
-/// updated), calling `observe` after each reset and each step. The episodes of [`evaluate`]
-/// with the same seed, for a policy held in memory (the videos of a training run).
+/// Plays `episodes` of `policy` on `env` ([`crate::evaluation::play_episodes`], the one
+/// episode loop), normalizing observations with `normalizer` (not updated), calling `observe`
+/// after each reset and each step. The episodes of [`evaluate`] with the same seed, for a
+/// policy held in memory (the videos of a training run).
 ///
 /// # Errors
 /// The observer's, which stop the episodes.
@@ -191,62 +177,20 @@ pub fn play_episodes(
     episodes: &Episodes,
     observe: &mut dyn FnMut(&mut dyn Env, &Moment) -> anyhow::Result<()>,
 ) -> anyhow::Result<EvalResult> {
-    let Episodes {
-        count,
-        deterministic,
-        seed,
-    } = *episodes;
-    let mut rng = StdRng::seed_from_u64(seed);
-    let mut obs = vec![0.0f32; env.observation_space().flat_dim()];
-    let mut act = ActBuffers::default();
-    let mut result = EvalResult {
-        returns: vec![],
-        lengths: vec![],
-        success: vec![],
-        unstable: vec![],
+    let plays = Plays {
+        count: episodes.count,
+        deterministic: episodes.deterministic,
+        first_reset: episodes.seed,
+        action_seed: episodes.seed,
     };
-    for episode in 0..count {
-        env.reset(Some(seed.wrapping_add(episode as u64)), &mut obs);
-        let (mut ret, mut len, mut judged) = (0.0, 0, false);
-        let mut moment = Moment {
-            episode,
-            step: 0,
-            reward: 0.0,
-            ret,
-            done: false,
-        };
-        observe(env, &moment)?;
-        let (success, unstable) = loop {
-            if let Some(rms) = normalizer {
-                rms.normalize(&mut obs);
-            }
-            policy.act(&obs, 1, deterministic, &mut rng, &mut act);
-            let t = match env.action_space() {
-                Space::Discrete { .. } => {
-                    env.step(Action::Discrete(act.env_actions[0] as usize), &mut obs)
-                }
-                Space::Box { .. } => env.step(Action::Continuous(&act.env_actions), &mut obs),
-            };
-            ret += t.reward;
-            len += 1;
-            judged |= t.info.success.is_some();
-            moment = Moment {
-                step: len,
-                reward: t.reward,
-                ret,
-                done: t.done(),
-                ..moment
-            };
-            observe(env, &moment)?;
-            if t.done() {
-                let success = judged.then_some(t.info.success == Some(true) && !t.info.unstable);
-                break (success, t.info.unstable);
-            }
-        };
-        result.returns.push(ret);
-        result.lengths.push(len);
-        result.success.push(success);
-        result.unstable.push(unstable);
-    }
-    Ok(result)
+    let act = &mut |obs: &[f32], deterministic, rng: &mut StdRng, out: &mut ActBuffers| {
+        policy.act(obs, 1, deterministic, rng, out)
+    };
+    let played = crate::evaluation::play_episodes(env, act, normalizer, &plays, observe)?;
+    Ok(EvalResult {
+        returns: played.iter().map(|e| e.ret).collect(),
+        lengths: played.iter().map(|e| e.length).collect(),
+        success: played.iter().map(|e| e.success).collect(),
+        unstable: played.iter().map(|e| e.unstable).collect(),
+    })
 }

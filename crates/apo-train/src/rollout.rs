@@ -148,15 +148,11 @@ impl Collector {
         let n = envs.num_envs();
         let obs_dim = envs.obs_dim();
         let action = action_kind(envs.action_space());
-        let dist_width = match action {
-            ActionKind::Continuous { dim } => 2 * dim,
-            ActionKind::Discrete { n } => n,
-        };
         let steps_per_env = steps_per_epoch.div_ceil(n);
         let layout = BufferLayout {
             observation_dim: obs_dim,
             action_width: action.width(),
-            dist_width,
+            dist_width: action.dist_width(),
         };
         Self {
             obs: vec![0.0; n * obs_dim],

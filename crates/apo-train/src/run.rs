@@ -5,33 +5,17 @@
 //! process) continues from its directory with [`Run::resume`], and the resumed run is
 //! bit-identical to one that never stopped.
 //!
-//! ```no_run
-//! use std::sync::atomic::AtomicBool;
-//! use apo_core::Algorithm;
-//! use apo_train::run::{Launch, Run};
-//! use apo_train::RunConfig;
-//! use burn::backend::NdArray;
-//!
-//! let mut config = RunConfig::defaults(Algorithm::Apo, "Pendulum-v1");
-//! config.train.epochs = 6;
-//! let stop = AtomicBool::new(false); // raise it (a signal handler) to checkpoint and stop
-//! let mut run = Run::<NdArray>::create("runs/pendulum".as_ref(), config, &Launch::new(1), &Default::default(), false)?;
-//! while let Some(row) = run.epoch(&stop, &mut |_steps| {})? {
-//!     println!("epoch {}: worst return {:?}", row.epoch, row.ep_ret_min);
-//! }
-//! // later, in another process: continue where it stopped
-//! let mut run = Run::<NdArray>::resume("runs/pendulum".as_ref(), &Launch::new(1), &Default::default(), None)?;
-//! while run.epoch(&stop, &mut |_| {})?.is_some() {}
-//! # Ok::<(), anyhow::Error>(())
-//! ```
+//! The crate docs walk through a run stopped and resumed (story 4).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{bail, Context};
 use apo_core::inference::HostPolicy;
-use apo_core::{Comm, MlpPolicyConfig};
+use apo_core::{Comm, MlpPolicyConfig, PolicyFamily};
+use burn::backend::Autodiff;
 use burn::backend::NdArray;
+use burn::module::AutodiffModule;
 use burn::tensor::backend::Backend;
 
 use crate::atomic;
@@ -42,7 +26,7 @@ use crate::run_config::RunConfig;
 use crate::run_dir::{self, NewRunDir, RunLock};
 use crate::tensorboard::{row_scalars, EventWriter};
 use crate::video::{EpochVideos, TENSORBOARD_VIDEO_BYTES};
-use crate::{HostActor, TrainError, Trainer};
+use crate::{Actor, HostActor, TrainConfig, TrainError, Trainer};
 
 /// How a process takes part in a run.
 #[derive(Debug, Clone)]
@@ -103,16 +87,23 @@ struct Files {
     videos: Option<EpochVideos>,
 }
 
-/// A training run in a directory, on backend `B`, with the built-in MLP policy; see the
-/// [module docs](self).
+/// A training run in a directory, on backend `B`, of a policy of family `F` acting through
+/// `A`: by default the built-in MLP ([`Run::create`], [`Run::resume`]); any
+/// [`PolicyFamily`] and environments through [`Run::create_with`] and [`Run::resume_with`].
+/// See the [module docs](self).
 ///
 /// In a data-parallel run every rank makes its `Run` with the same arguments; rank 0 alone
 /// writes the run's files, the others only read the checkpoint when resuming. A checkpoint
 /// records the number of ranks and resuming with another is refused.
-pub struct Run<B: Backend> {
+pub struct Run<B: Backend, F: PolicyFamily = MlpPolicyConfig, A: Actor<B, F> = HostActor>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
     config: RunConfig,
     dir: PathBuf,
-    trainer: Trainer<B, MlpPolicyConfig, HostActor>,
+    trainer: Trainer<B, F, A>,
+    /// The host copy of the policy the epoch videos act with (the built-in MLP's).
+    video_policy: Option<VideoPolicy<B, F, A>>,
     shapes: Shapes,
     comm: Comm,
     files: Option<Files>,
@@ -127,7 +118,81 @@ pub struct Run<B: Backend> {
     lock: Option<RunLock>,
 }
 
+/// What makes a run's trainer: the process's part, the device, the trainer's maker and the
+/// videos' policy.
+struct Start<'a, B: Backend, F: PolicyFamily, A: Actor<B, F>, M>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
+    launch: &'a Launch,
+    device: &'a B::Device,
+    make: M,
+    video_policy: Option<VideoPolicy<B, F, A>>,
+}
+
+/// Refuses a config whose run would not fit this machine's memory (a registered
+/// environment's; the sizes of others are not known before they are made).
+fn check_memory(config: &RunConfig) -> anyhow::Result<()> {
+    if let Ok(spec) = apo_envs::registry::spec(&config.train.env) {
+        config.check_memory(spec.observation_dim, crate::action_kind(&spec.action_space))?;
+    }
+    Ok(())
+}
+
+/// How the epoch videos get the policy: a host copy of the trainer's.
+type VideoPolicy<B, F, A> = fn(&Trainer<B, F, A>) -> HostPolicy;
+
+/// The host copy of the built-in MLP's policy.
+fn mlp_host_policy<B: Backend>(trainer: &Trainer<B, MlpPolicyConfig, HostActor>) -> HostPolicy {
+    HostPolicy::new(
+        &trainer.learner().policy_on::<NdArray>(&Default::default()),
+        trainer.action(),
+    )
+}
+
 impl<B: Backend> Run<B> {
+    /// Creates a new run of `config` with the built-in MLP policy: see [`Run::create_with`].
+    ///
+    /// # Errors
+    /// As [`Run::create_with`].
+    pub fn create(
+        dir: &Path,
+        config: RunConfig,
+        launch: &Launch,
+        device: &B::Device,
+        force: bool,
+    ) -> anyhow::Result<Self> {
+        let make = |config, threads| Trainer::mlp(config, device, threads);
+        Self::create_inner(
+            dir,
+            config,
+            launch,
+            device,
+            force,
+            make,
+            Some(mlp_host_policy),
+        )
+    }
+
+    /// Continues the run in `dir` with the built-in MLP policy: see [`Run::resume_with`].
+    ///
+    /// # Errors
+    /// As [`Run::resume_with`].
+    pub fn resume(
+        dir: &Path,
+        launch: &Launch,
+        device: &B::Device,
+        epochs: Option<usize>,
+    ) -> anyhow::Result<Self> {
+        let make = |config, threads| Trainer::mlp(config, device, threads);
+        Self::resume_inner(dir, launch, device, epochs, make, Some(mlp_host_policy))
+    }
+}
+
+impl<B: Backend, F: PolicyFamily, A: Actor<B, F>> Run<B, F, A>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
     /// Creates a new run of `config` in `dir`: the directory is made (or an empty one taken;
     /// with `force`, an earlier run's files that apo made are replaced: see
     /// [`NewRunDir::prepare`]), locked, and `config.toml` written into it. Nothing is left
@@ -136,18 +201,36 @@ impl<B: Backend> Run<B> {
     /// # Errors
     /// A config whose run would not fit this machine's memory, an environment that cannot be
     /// made, a directory that may not be used (naming why), a failed write.
-    pub fn create(
+    pub fn create_with(
         dir: &Path,
         config: RunConfig,
         launch: &Launch,
         device: &B::Device,
         force: bool,
+        make: impl FnOnce(TrainConfig, usize) -> Result<Trainer<B, F, A>, TrainError>,
     ) -> anyhow::Result<Self> {
-        let spec = apo_envs::registry::spec(&config.train.env)?;
-        config.check_memory(spec.observation_dim, crate::action_kind(&spec.action_space))?;
+        Self::create_inner(dir, config, launch, device, force, make, None)
+    }
+
+    fn create_inner(
+        dir: &Path,
+        config: RunConfig,
+        launch: &Launch,
+        device: &B::Device,
+        force: bool,
+        make: impl FnOnce(TrainConfig, usize) -> Result<Trainer<B, F, A>, TrainError>,
+        video_policy: Option<VideoPolicy<B, F, A>>,
+    ) -> anyhow::Result<Self> {
+        check_memory(&config)?;
+        let start = Start {
+            launch,
+            device,
+            make,
+            video_policy,
+        };
         if launch.comm.rank() != 0 {
             // rank 0 prepares the directory and writes its files
-            return Self::open(config, dir, launch, device, false, None, None);
+            return Self::open(config, dir, start, false, None, None);
         }
         let mut prepared = NewRunDir::prepare(dir, force)?;
         let lock = prepared.take_lock().context("the run directory's lock")?;
@@ -161,15 +244,7 @@ impl<B: Backend> Run<B> {
             prepared.discard();
             return Err(e);
         }
-        Self::open(
-            config,
-            dir,
-            launch,
-            device,
-            false,
-            Some(prepared),
-            Some(lock),
-        )
+        Self::open(config, dir, start, false, Some(prepared), Some(lock))
     }
 
     /// Continues the run in `dir` from its latest checkpoint, with the `config.toml` it was
@@ -183,41 +258,64 @@ impl<B: Backend> Run<B> {
     /// # Errors
     /// `dir` not a run of apo, locked by another process, a checkpoint that fails its checks
     /// (naming the file), a config edited since the checkpoint (naming the key and both values).
-    pub fn resume(
+    pub fn resume_with(
         dir: &Path,
         launch: &Launch,
         device: &B::Device,
         epochs: Option<usize>,
+        make: impl FnOnce(TrainConfig, usize) -> Result<Trainer<B, F, A>, TrainError>,
+    ) -> anyhow::Result<Self> {
+        Self::resume_inner(dir, launch, device, epochs, make, None)
+    }
+
+    fn resume_inner(
+        dir: &Path,
+        launch: &Launch,
+        device: &B::Device,
+        epochs: Option<usize>,
+        make: impl FnOnce(TrainConfig, usize) -> Result<Trainer<B, F, A>, TrainError>,
+        video_policy: Option<VideoPolicy<B, F, A>>,
     ) -> anyhow::Result<Self> {
         let writer = launch.comm.rank() == 0;
         let config_path = dir.join(run_dir::CONFIG);
         let mut config = run_dir::check_resumable(dir)?;
         let lock = writer.then(|| RunLock::acquire(dir)).transpose()?;
-        let spec = apo_envs::registry::spec(&config.train.env)?;
         if let Some(epochs) = epochs {
             config.train.epochs = epochs;
             config.validate()?;
         }
-        config.check_memory(spec.observation_dim, crate::action_kind(&spec.action_space))?;
+        check_memory(&config)?;
         if epochs.is_some() && writer {
             // the new target is part of the run: a later plain resume continues to it
             atomic::write(&config_path, config.to_toml().as_bytes())
                 .with_context(|| format!("cannot write {}", config_path.display()))?;
         }
-        Self::open(config, dir, launch, device, true, None, lock)
+        let start = Start {
+            launch,
+            device,
+            make,
+            video_policy,
+        };
+        Self::open(config, dir, start, true, None, lock)
     }
 
     /// The run's networks and counters, from the latest checkpoint when `resume`.
     fn open(
         config: RunConfig,
         run_dir: &Path,
-        launch: &Launch,
-        device: &B::Device,
+        start: Start<
+            '_,
+            B,
+            F,
+            A,
+            impl FnOnce(TrainConfig, usize) -> Result<Trainer<B, F, A>, TrainError>,
+        >,
         resume: bool,
         fresh: Option<NewRunDir>,
         lock: Option<RunLock>,
     ) -> anyhow::Result<Self> {
-        let opened = Self::open_files(&config, run_dir, launch, device, resume);
+        let (comm, video_policy) = (start.launch.comm.clone(), start.video_policy);
+        let opened = Self::open_files(&config, run_dir, start, resume);
         match opened {
             Ok((trainer, shapes, files, rows)) => {
                 let metric = config.train.eval_best;
@@ -232,7 +330,8 @@ impl<B: Backend> Run<B> {
                     dir: run_dir.to_path_buf(),
                     trainer,
                     shapes,
-                    comm: launch.comm.clone(),
+                    comm,
+                    video_policy,
                     files,
                     rows,
                     best,
@@ -255,22 +354,35 @@ impl<B: Backend> Run<B> {
     fn open_files(
         config: &RunConfig,
         run_dir: &Path,
-        launch: &Launch,
-        device: &B::Device,
+        start: Start<
+            '_,
+            B,
+            F,
+            A,
+            impl FnOnce(TrainConfig, usize) -> Result<Trainer<B, F, A>, TrainError>,
+        >,
         resume: bool,
-    ) -> anyhow::Result<(
-        Trainer<B, MlpPolicyConfig, HostActor>,
-        Shapes,
-        Option<Files>,
-        Vec<ProgressRow>,
-    )> {
+    ) -> anyhow::Result<(Trainer<B, F, A>, Shapes, Option<Files>, Vec<ProgressRow>)> {
+        let Start {
+            launch,
+            device,
+            make,
+            video_policy,
+        } = start;
         let Launch { threads, ref comm } = *launch;
         let writer = comm.rank() == 0;
         if writer && resume {
             // what a process stopped mid-write left (this process holds the run's lock)
             crate::run_dir::remove_stale_temps(run_dir)?;
         }
-        let mut trainer = Trainer::<B, _, _>::mlp(config.train.clone(), device, threads)?;
+        if config.render_every > 0 && video_policy.is_none() {
+            bail!(
+                "render_every = {}: the epoch videos act through the built-in MLP's host copy; with a policy of \
+                 your own set render_every = 0 (record videos with apo_train::video from your own loop)",
+                config.render_every
+            );
+        }
+        let mut trainer = make(config.train.clone(), threads)?;
         trainer
             .learner_mut()
             .set_kernels(config.kernels.resolve(config.backend));
@@ -477,7 +589,21 @@ impl<B: Backend> Run<B> {
         if let Some(files) = self.files.as_mut() {
             if let Some(videos) = files.videos.as_mut().filter(|v| v.due(row.epoch)) {
                 // a video that fails is reported, never the end of the training
-                if let Err(e) = record_video(videos, &self.trainer, &row, &mut files.events, stop) {
+                let policy = self.video_policy.map(|host| host(&self.trainer));
+                let recorded =
+                    policy
+                        .context("no host policy for the video")
+                        .and_then(|mut policy| {
+                            record_video(
+                                videos,
+                                &mut policy,
+                                &self.trainer,
+                                &row,
+                                &mut files.events,
+                                stop,
+                            )
+                        });
+                if let Err(e) = recorded {
                     tracing::warn!(epoch = row.epoch, "no video of this epoch: {e:#}");
                 }
             }
@@ -552,31 +678,26 @@ impl<B: Backend> Run<B> {
     }
 
     /// The trainer: its learner (the networks), counters and environments.
-    pub fn trainer(&self) -> &Trainer<B, MlpPolicyConfig, HostActor> {
+    pub fn trainer(&self) -> &Trainer<B, F, A> {
         &self.trainer
     }
 }
 
 /// Records the video of the epoch of `row` with the trainer's current policy, and adds it to
 /// TensorBoard's images when it is small enough.
-fn record_video<B: Backend>(
+fn record_video<B: Backend, F: PolicyFamily, A: Actor<B, F>>(
     videos: &mut EpochVideos,
-    trainer: &Trainer<B, MlpPolicyConfig, HostActor>,
+    policy: &mut HostPolicy,
+    trainer: &Trainer<B, F, A>,
     row: &ProgressRow,
     events: &mut EventWriter,
     stop: &AtomicBool,
-) -> anyhow::Result<()> {
-    let device = Default::default();
-    let mut policy = HostPolicy::new(
-        &trainer.learner().policy_on::<NdArray>(&device),
-        trainer.action(),
-    );
-    let (path, size, result) = videos.record(
-        row.epoch,
-        &mut policy,
-        trainer.state().normalizer.as_ref(),
-        stop,
-    )?;
+) -> anyhow::Result<()>
+where
+    F::Policy<Autodiff<B>>: AutodiffModule<Autodiff<B>>,
+{
+    let (path, size, result) =
+        videos.record(row.epoch, policy, trainer.state().normalizer.as_ref(), stop)?;
     tracing::info!(epoch = row.epoch, video = %path.display(), returns = ?result.returns, "video");
     let context = || format!("cannot read {}", path.display());
     let length = std::fs::metadata(&path).with_context(context)?.len();

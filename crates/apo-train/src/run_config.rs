@@ -118,7 +118,7 @@ pub enum Preset {
 }
 
 /// The robust preset's ω1 and ω2, in the advantages' units (docs/results/variants.md).
-const ROBUST_OMEGA: (f64, f64) = (0.01, 0.005);
+pub const ROBUST_OMEGA: (f64, f64) = (0.01, 0.005);
 
 impl Preset {
     /// The preset's settings for a run of `algo` on the environment `env`, as `(key, value)`
@@ -510,10 +510,7 @@ pub fn memory_estimate(
     action: ActionKind,
     env_bytes: f64,
 ) -> f64 {
-    let dist = match action {
-        ActionKind::Continuous { dim } => 2 * dim,
-        ActionKind::Discrete { n } => n,
-    } as f64;
+    let dist = action.dist_width() as f64;
     let layers = |output: f64| {
         let mut sizes = vec![observation_dim as f64];
         sizes.extend(config.train.hidden.iter().map(|&h| h as f64));

@@ -77,6 +77,65 @@ struct Prefetched {
     seconds: f64,
 }
 
+/// The pipelined epoch (`pipeline = true`): after epoch k's policy step, epoch k's value fit
+/// runs on a second thread while this thread collects epoch k+1's steps with the new policy;
+/// when both are done, the fitted critic gives that rollout's values and advantages, and the
+/// next epoch starts from it. It is exact, not approximate — the rollout's steps never call the
+/// critic, the value fit continues the update's random stream, no policy step reads the critic,
+/// and a checkpoint after epoch k takes what the sequential epoch has (`docs/architecture.md`,
+/// "The pipelined epoch"). The test
+/// `the_pipelined_epoch_is_the_sequential_epoch_bit_for_bit` (`tests/trainer.rs`) checks it.
+#[derive(Default)]
+struct Pipeline {
+    /// The next epoch's rollout, collected during this epoch's value fit.
+    prefetched: Option<Prefetched>,
+    /// The threads the value fit runs its parallel parts on while the rollout is the longer
+    /// of the two: all of rayon's but one, which is left to the rollout (made at the first
+    /// pipelined epoch; `None` when it could not be made).
+    fit_pool: Option<Option<rayon::ThreadPool>>,
+    /// Whether the last value fit outlasted its rollout: the next one then takes all of
+    /// rayon's threads (the results do not depend on the threads).
+    fit_outlasts: bool,
+}
+
+impl Pipeline {
+    /// Runs `fit` on a second thread while `collect` runs on this one; returns what `collect`
+    /// returned and its seconds.
+    fn fit_beside<R>(
+        &mut self,
+        fit: impl FnOnce() + Send,
+        collect: impl FnOnce() -> R,
+    ) -> (R, f64) {
+        let pool = self.fit_pool.get_or_insert_with(|| {
+            let threads = rayon::current_num_threads().saturating_sub(1).max(1);
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|i| format!("apo-value-fit-{i}"))
+                .build()
+                .ok()
+        });
+        let pool = pool.as_ref().filter(|_| !self.fit_outlasts);
+        let start = Instant::now();
+        let (collected, collect_s, fit_s) = std::thread::scope(|scope| {
+            let fit = scope.spawn(move || {
+                match pool {
+                    Some(pool) => pool.install(fit),
+                    None => fit(),
+                }
+                start.elapsed().as_secs_f64()
+            });
+            let collected = collect();
+            let collect_s = start.elapsed().as_secs_f64();
+            match fit.join() {
+                Ok(fit_s) => (collected, collect_s, fit_s),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        });
+        self.fit_outlasts = fit_s > collect_s;
+        (collected, collect_s)
+    }
+}
+
 /// Trains a policy of family `F` with a learner on backend `B` (a plain backend such as
 /// `NdArray` or `Wgpu`: the learner adds `Autodiff` itself), acting through `A` (by default
 /// [`BurnActor<F>`], which runs any policy module; [`Trainer::mlp`] uses the faster
@@ -97,15 +156,9 @@ where
     comm: Comm,
     /// The evaluation episodes, when the run evaluates.
     evaluator: Option<Evaluator>,
-    /// The next epoch's rollout, collected during this epoch's value fit (`pipeline`).
-    prefetched: Option<Prefetched>,
-    /// The threads the pipelined value fit runs its parallel parts on while the rollout is the
-    /// longer of the two: all of rayon's but one, which is left to the rollout (made at the
-    /// first pipelined epoch; `None` when it could not be made).
-    fit_pool: Option<Option<rayon::ThreadPool>>,
-    /// Whether the last pipelined value fit outlasted its rollout: the next one then takes
-    /// all of rayon's threads (the results do not depend on the threads).
-    fit_outlasts: bool,
+    /// The pipelined schedule's state: the next epoch's rollout, collected during this
+    /// epoch's value fit (`pipeline`).
+    pipeline: Pipeline,
 }
 
 impl<B: Backend> Trainer<B, MlpPolicyConfig, HostActor> {
@@ -229,9 +282,7 @@ where
             started: (Instant::now(), 0.0),
             comm: Comm::default(),
             evaluator,
-            prefetched: None,
-            fit_pool: None,
-            fit_outlasts: false,
+            pipeline: Pipeline::default(),
             config,
             learner,
             value,
@@ -320,7 +371,7 @@ where
             });
         }
         self.collector.set_normalizer(state.normalizer.clone());
-        self.prefetched = None;
+        self.pipeline.prefetched = None;
         self.started = (Instant::now(), state.elapsed_s);
         self.state = state;
         self.actor = A::from_learner(&self.learner, &self.value);
@@ -357,106 +408,138 @@ where
         if self.finished() {
             return Ok(None);
         }
-        let epoch_start = Instant::now();
+        let start = Instant::now();
         let seed = self.epoch_seed(self.state.epoch);
-        let steps_before = self.state.env_steps;
-        let ranks = self.comm.size() as u64;
-        let Prefetched {
-            rollout,
-            seconds: rollout_s,
-        } = match self.prefetched.take() {
-            Some(prefetched) => prefetched,
-            None => {
-                let rollout =
-                    self.collector
-                        .collect_steps(&mut self.actor, seed, stop, &mut |steps| {
-                            progress(steps_before + steps * ranks)
-                        });
-                let Some(rollout) = self.finish_rollout(rollout) else {
-                    return Ok(None);
-                };
-                Prefetched {
-                    rollout,
-                    seconds: epoch_start.elapsed().as_secs_f64(),
-                }
-            }
+        // collect: the rollout, its values and advantages (GAE)
+        let Some(Prefetched { rollout, seconds }) = self.collect(seed, stop, progress, start)
+        else {
+            return Ok(None);
         };
+        // the policy step
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
         let mut update = self.learner.update_policy(&rollout.batch, &mut rng)?;
         // the observation statistics after this epoch's rollout (the next one moves them)
         let normalizer = self.collector.normalizer().cloned();
+        // the value fit, beside the next rollout when pipelined
         if self.config.pipeline && self.state.epoch + 1 < self.config.epochs {
-            // the new policy; the critic is not called during the rollout's steps
-            self.actor = A::from_learner(&self.learner, &self.value);
-            let next_seed = self.epoch_seed(self.state.epoch + 1);
-            let next_steps = steps_before + rollout.steps;
-            let pool = self.fit_pool.get_or_insert_with(|| {
-                let threads = rayon::current_num_threads().saturating_sub(1).max(1);
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .thread_name(|i| format!("apo-value-fit-{i}"))
-                    .build()
-                    .ok()
-            });
-            let pool = pool.as_ref().filter(|_| !self.fit_outlasts);
-            let (learner, collector, actor) =
-                (&mut self.learner, &mut self.collector, &mut self.actor);
-            let (batch, report) = (&rollout.batch, &mut update);
-            let start = Instant::now();
-            let (next, next_s, fit_s) = std::thread::scope(|scope| {
-                let fit = scope.spawn(move || {
-                    let mut fit = || learner.update_value(batch, &mut rng, report);
-                    match pool {
-                        Some(pool) => pool.install(fit),
-                        None => fit(),
-                    }
-                    start.elapsed().as_secs_f64()
-                });
-                let next = collector.collect_steps(actor, next_seed, stop, &mut |steps| {
-                    progress(next_steps + steps * ranks)
-                });
-                let next_s = start.elapsed().as_secs_f64();
-                match fit.join() {
-                    Ok(fit_s) => (next, next_s, fit_s),
-                    Err(panic) => std::panic::resume_unwind(panic),
-                }
-            });
-            self.fit_outlasts = fit_s > next_s;
-            if let Some(what) = non_finite(&update, &self.learner, &rollout.batch) {
-                if next.is_some() {
-                    self.collector.discard();
-                }
-                self.collector.set_normalizer(normalizer);
-                return Err(TrainError::NonFinite {
-                    epoch: self.state.epoch + 1,
-                    what,
-                });
-            }
-            // the fitted critic gives the next rollout's values
-            self.actor = A::from_learner(&self.learner, &self.value);
-            let finish_start = Instant::now();
-            match self.finish_rollout(next) {
-                Some(rollout) => {
-                    self.prefetched = Some(Prefetched {
-                        rollout,
-                        seconds: next_s + finish_start.elapsed().as_secs_f64(),
-                    })
-                }
-                // a stop during the next rollout drops it, and its observation statistics
-                None => self.collector.set_normalizer(normalizer.clone()),
-            }
+            self.fit_value_beside_next_rollout(
+                &rollout,
+                rng,
+                &mut update,
+                &normalizer,
+                stop,
+                progress,
+            )?;
         } else {
             self.learner
                 .update_value(&rollout.batch, &mut rng, &mut update);
-            if let Some(what) = non_finite(&update, &self.learner, &rollout.batch) {
-                return Err(TrainError::NonFinite {
-                    epoch: self.state.epoch + 1,
-                    what,
-                });
-            }
+            self.check_finite(&update, &rollout)?;
             self.actor = A::from_learner(&self.learner, &self.value);
         }
+        Ok(Some(
+            self.close_epoch(rollout, seconds, update, normalizer, start),
+        ))
+    }
 
+    /// The epoch's rollout: the one collected beside the last epoch's value fit, or a new one
+    /// (`None` when `stop` was raised during it).
+    fn collect(
+        &mut self,
+        seed: u64,
+        stop: &AtomicBool,
+        progress: &mut dyn FnMut(u64),
+        start: Instant,
+    ) -> Option<Prefetched> {
+        if let Some(prefetched) = self.pipeline.prefetched.take() {
+            return Some(prefetched);
+        }
+        let (steps_before, ranks) = (self.state.env_steps, self.comm.size() as u64);
+        let steps = self
+            .collector
+            .collect_steps(&mut self.actor, seed, stop, &mut |steps| {
+                progress(steps_before + steps * ranks)
+            });
+        let rollout = self.finish_rollout(steps)?;
+        Some(Prefetched {
+            rollout,
+            seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The value fit on `rollout` on a second thread while this one collects the next epoch's
+    /// steps with the new policy ([`Pipeline`]); the fitted critic then completes that rollout,
+    /// which the next call takes. A stop during it drops it and its observation statistics.
+    fn fit_value_beside_next_rollout(
+        &mut self,
+        rollout: &crate::rollout::Rollout,
+        mut rng: StdRng,
+        update: &mut UpdateReport,
+        normalizer: &Option<RunningMeanStd>,
+        stop: &AtomicBool,
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<(), TrainError> {
+        // the new policy; the critic is not called during the rollout's steps
+        self.actor = A::from_learner(&self.learner, &self.value);
+        let next_seed = self.epoch_seed(self.state.epoch + 1);
+        let next_steps = self.state.env_steps + rollout.steps;
+        let ranks = self.comm.size() as u64;
+        let (learner, collector, actor) = (&mut self.learner, &mut self.collector, &mut self.actor);
+        let (next, next_s) = self.pipeline.fit_beside(
+            || learner.update_value(&rollout.batch, &mut rng, update),
+            || {
+                collector.collect_steps(actor, next_seed, stop, &mut |steps| {
+                    progress(next_steps + steps * ranks)
+                })
+            },
+        );
+        if let Err(e) = self.check_finite(update, rollout) {
+            if next.is_some() {
+                self.collector.discard();
+            }
+            self.collector.set_normalizer(normalizer.clone());
+            return Err(e);
+        }
+        // the fitted critic gives the next rollout's values
+        self.actor = A::from_learner(&self.learner, &self.value);
+        let finish_start = Instant::now();
+        match self.finish_rollout(next) {
+            Some(rollout) => {
+                self.pipeline.prefetched = Some(Prefetched {
+                    rollout,
+                    seconds: next_s + finish_start.elapsed().as_secs_f64(),
+                })
+            }
+            // a stop during the next rollout drops it, and its observation statistics
+            None => self.collector.set_normalizer(normalizer.clone()),
+        }
+        Ok(())
+    }
+
+    /// [`TrainError::NonFinite`] when the update left a loss or parameter non-finite.
+    fn check_finite(
+        &self,
+        update: &UpdateReport,
+        rollout: &crate::rollout::Rollout,
+    ) -> Result<(), TrainError> {
+        match non_finite(update, &self.learner, &rollout.batch) {
+            Some(what) => Err(TrainError::NonFinite {
+                epoch: self.state.epoch + 1,
+                what,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Counts the epoch in the run's state and makes its report: the metrics row, the
+    /// update's report and the episodes, and the evaluation when one is due.
+    fn close_epoch(
+        &mut self,
+        rollout: crate::rollout::Rollout,
+        rollout_s: f64,
+        update: UpdateReport,
+        normalizer: Option<RunningMeanStd>,
+        start: Instant,
+    ) -> EpochReport {
         let state = &mut self.state;
         state.epoch += 1;
         state.env_steps += rollout.steps;
@@ -465,7 +548,7 @@ where
         let stats = episode_stats(&rollout.episodes, self.config.algo.probability_factor());
         // with the pipeline, this call's time is the policy step, the value fit and the next
         // rollout's steps together: the epoch's share of the run's wall time
-        let wall_s = epoch_start.elapsed().as_secs_f64();
+        let wall_s = start.elapsed().as_secs_f64();
         let steps_per_s = rollout.steps as f64 / wall_s.max(1e-9);
         let mut row = ProgressRow::new(
             state.epoch,
@@ -507,11 +590,11 @@ where
                 );
             }
         }
-        Ok(Some(EpochReport {
+        EpochReport {
             row,
             update,
             episodes,
-        }))
+        }
     }
 
     /// The seed of epoch `epoch`'s streams: rank 0 draws a one-process run's, the others

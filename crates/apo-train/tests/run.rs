@@ -200,3 +200,50 @@ fn progress_advances_within_the_epoch() {
         "steps reported every {every} steps within each epoch"
     );
 }
+
+/// Copies the directory tree `from` into `to`.
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for entry in std::fs::read_dir(from).expect("read_dir") {
+        let entry = entry.expect("entry");
+        let target = to.join(entry.file_name());
+        if entry.file_type().expect("type").is_dir() {
+            copy_tree(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).expect("copy");
+        }
+    }
+}
+
+/// A run written by an earlier version (`apo train --algo ppo --env CartPole-v1 --epochs 2
+/// --steps-per-epoch 200 --set 'hidden=[8]'`, committed under `tests/fixtures/`): its
+/// checkpoint passes the manifest's checks, loads for playback and resumes to a third epoch,
+/// with its two recorded rows kept.
+#[test]
+fn a_checkpoint_written_by_an_earlier_version_loads_and_resumes() {
+    let fixture =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ppo-cartpole-2-epochs");
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let dir = tmp.path().join("run");
+    copy_tree(&fixture, &dir);
+    let recorded = rows_on_disk(&dir);
+    assert_eq!(recorded.len(), 2);
+
+    let loaded = apo_train::playback::LoadedRun::load(&dir, &apo_train::checkpoint::Which::Latest)
+        .expect("the checkpoint loads for playback");
+    assert_eq!(loaded.epoch, 2);
+
+    let device = Default::default();
+    let mut run = Run::<NdArray>::resume(&dir, &Launch::new(1), &device, Some(3)).expect("resumes");
+    assert_eq!(run.epochs_done(), 2);
+    assert_eq!(train(&mut run, None).len(), 1);
+    assert!(run.finished());
+    drop(run);
+    let rows = rows_on_disk(&dir);
+    assert_eq!(rows.len(), 3);
+    assert_eq!(
+        rows[..2],
+        recorded[..],
+        "the recorded epochs are kept as they were"
+    );
+}

@@ -5,18 +5,23 @@
 //! 2. a policy of `burn::nn` layers (Linear, LayerNorm) on a registered environment
 //!    (CartPole-v1), TRPO and APO, on NdArray and (with `--wgpu`) on wgpu;
 //! 3. an environment of its own (`impl Env`, seeded through `apo_envs::rng`) with the
-//!    built-in MLP and with the `burn::nn` policy, through `Trainer::from_envs`.
+//!    built-in MLP and with the `burn::nn` policy, through `Trainer::from_envs`;
+//! 4. a run in a directory (`apo_train::Run`): 3 epochs, a checkpoint, everything dropped,
+//!    resumed from the directory alone, 3 more epochs — the networks, `progress.csv` and
+//!    `episodes.csv` equal those of 6 epochs straight, with the built-in MLP and with the
+//!    `burn::nn` policy.
 //!
 //! `cargo run --manifest-path tests/external-user/Cargo.toml [-- --wgpu]`; exits non-zero
 //! with the failed check on stderr.
 
+use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use anyhow_free::{ensure, Result};
 use apo_core::{ActionKind, Algorithm, DistParams, Policy, PolicyFamily};
 use apo_envs::rng::{reseed, EnvRng, Rng, SeedableRng};
 use apo_envs::{Action, Env, Space, Transition, VecEnv};
-use apo_train::{HostActor, ProgressRow, TrainConfig, Trainer};
+use apo_train::{BurnActor, HostActor, Launch, ProgressRow, Run, RunConfig, TrainConfig, Trainer};
 use burn::backend::{NdArray, Wgpu};
 use burn::module::{AutodiffModule, Module};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -215,6 +220,108 @@ fn nn_policy_on_cartpole<B: Backend>(device: &B::Device, backend: &str) -> Resul
     Ok(())
 }
 
+/// Trains `run` to its end, or for `epochs` epochs.
+fn epochs_of<F: PolicyFamily, A: apo_train::Actor<NdArray, F>>(
+    run: &mut Run<NdArray, F, A>,
+    epochs: Option<usize>,
+) -> Result<usize>
+where
+    F::Policy<burn::backend::Autodiff<NdArray>>: AutodiffModule<burn::backend::Autodiff<NdArray>>,
+{
+    let stop = AtomicBool::new(false);
+    let mut done = 0;
+    while epochs.is_none_or(|n| done < n) && run.epoch(&stop, &mut |_| {})?.is_some() {
+        done += 1;
+    }
+    Ok(done)
+}
+
+/// What a run leaves that must not depend on where it stopped: its networks, its
+/// `progress.csv` without the wall-clock columns, its `episodes.csv`.
+type Outcome = (Vec<f64>, Vec<f64>, Vec<ProgressRow>, Vec<u8>);
+
+fn outcome<F: PolicyFamily, A: apo_train::Actor<NdArray, F>>(
+    run: &Run<NdArray, F, A>,
+) -> Result<Outcome>
+where
+    F::Policy<burn::backend::Autodiff<NdArray>>: AutodiffModule<burn::backend::Autodiff<NdArray>>,
+{
+    let rows = apo_train::progress_csv::read(&run.dir().join("progress.csv"))?;
+    Ok((
+        run.trainer().learner().policy_params(),
+        run.trainer().learner().value_params(),
+        rows.into_iter().map(ProgressRow::timeless).collect(),
+        std::fs::read(run.dir().join("episodes.csv"))?,
+    ))
+}
+
+/// Story 4: a run stopped after 3 epochs and resumed from its directory equals 6 straight.
+fn resume_from_the_directory(root: &Path) -> Result<()> {
+    let device = Default::default();
+    let launch = Launch::new(1);
+    let mut config = RunConfig::defaults(Algorithm::Apo, "CartPole-v1");
+    config.train.epochs = 6;
+    config.train.steps_per_epoch = 256;
+    config.train.num_envs = 2;
+
+    // the built-in MLP
+    let mut straight =
+        Run::<NdArray>::create(&root.join("mlp-6"), config.clone(), &launch, &device, false)?;
+    epochs_of(&mut straight, None)?;
+    let six = outcome(&straight)?;
+    drop(straight);
+    let split = root.join("mlp-3+3");
+    let mut run = Run::<NdArray>::create(&split, config.clone(), &launch, &device, false)?;
+    ensure!(epochs_of(&mut run, Some(3))? == 3, "4. MLP: 3 epochs");
+    run.checkpoint()?;
+    drop(run);
+    let mut run = Run::<NdArray>::resume(&split, &launch, &device, None)?;
+    ensure!(
+        epochs_of(&mut run, None)? == 3 && run.finished(),
+        "4. MLP: 3 more epochs"
+    );
+    ensure!(
+        outcome(&run)? == six,
+        "4. MLP: 3 + 3 epochs differ from 6 straight"
+    );
+    println!(
+        "4. built-in MLP, CartPole-v1, APO: 3 + 3 epochs resumed from the directory = 6 straight"
+    );
+
+    // our own burn::nn policy
+    type NnRun = Run<NdArray, NnPolicyConfig, BurnActor<NnPolicyConfig>>;
+    let make = |config, threads| Trainer::new(config, &device, threads, nn_family);
+    let mut straight = NnRun::create_with(
+        &root.join("nn-6"),
+        config.clone(),
+        &launch,
+        &device,
+        false,
+        make,
+    )?;
+    epochs_of(&mut straight, None)?;
+    let six = outcome(&straight)?;
+    drop(straight);
+    let split = root.join("nn-3+3");
+    let mut run = NnRun::create_with(&split, config, &launch, &device, false, make)?;
+    ensure!(epochs_of(&mut run, Some(3))? == 3, "4. nn: 3 epochs");
+    run.checkpoint()?;
+    drop(run);
+    let mut run = NnRun::resume_with(&split, &launch, &device, None, make)?;
+    ensure!(
+        epochs_of(&mut run, None)? == 3 && run.finished(),
+        "4. nn: 3 more epochs"
+    );
+    ensure!(
+        outcome(&run)? == six,
+        "4. nn: 3 + 3 epochs differ from 6 straight"
+    );
+    println!(
+        "4. nn policy, CartPole-v1, APO: 3 + 3 epochs resumed from the directory = 6 straight"
+    );
+    Ok(())
+}
+
 fn main() -> Result<()> {
     let wgpu = std::env::args().any(|a| a == "--wgpu");
     let device = Default::default();
@@ -260,6 +367,11 @@ fn main() -> Result<()> {
         Err(e) => ensure!(e.to_string().contains("max_episode_steps"), "refusal: {e}"),
         Ok(_) => return Err("from_envs accepted max_episode_steps".into()),
     }
+    // 4. a run in a directory, stopped, dropped and resumed
+    let root = std::env::temp_dir().join(format!("apo-external-user-{}", std::process::id()));
+    let resumed = resume_from_the_directory(&root);
+    std::fs::remove_dir_all(&root)?;
+    resumed?;
     println!("external user: every story trained");
     Ok(())
 }

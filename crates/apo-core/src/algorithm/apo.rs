@@ -38,6 +38,11 @@ pub struct ApoConfig {
 }
 
 impl ApoConfig {
+    /// The penalty's settings as one [`Penalty`] (its checks, docs and paper defaults are
+    /// [`Penalty`]'s). They are fields of this struct rather than a `#[serde(flatten)]`ed
+    /// `Penalty` because serde cannot deny unknown fields through `flatten`, and a mistyped
+    /// key of `[algo.apo]` must be an error; they stay flat keys (`k`, `omega1`, …) in
+    /// config files and `--set`.
     fn penalty(&self) -> Penalty {
         Penalty {
             k: self.k,
