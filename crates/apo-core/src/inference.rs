@@ -29,7 +29,7 @@ struct HostLayer {
 }
 
 /// A host copy of an [`Mlp`] for the rollout's forward pass, a few rows per call (one per
-/// environment). It differs from the update's [`crate::host_net::HostNet`], which holds the
+/// environment). It differs from the update's `HostNet` (module `host_net`), which holds the
 /// same layers for batches of thousands of rows with reverse and tangent passes split over
 /// threads: here a call costs microseconds and must allocate nothing, so it is plain row
 /// loops over one scratch pair. Both are built from [`Mlp::host_layers`];

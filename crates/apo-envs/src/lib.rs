@@ -92,6 +92,7 @@ pub mod registry;
 pub mod render;
 pub mod rng;
 pub mod space;
+pub mod throughput;
 pub mod vector;
 pub mod wrappers;
 

@@ -9,7 +9,7 @@
 //! ```
 //!
 //! Columns: `raw/fs` testspeed's steps/s over the frame skip; `env` our environment under
-//! uniform random actions (`mujoco::steps_per_second`); `env(ts)` our environment under
+//! uniform random actions (`throughput::steps_per_second`); `env(ts)` our environment under
 //! testspeed's controls; `wrap/fs` our `Data::step` under testspeed's controls, over the frame
 //! skip; each with its ratio to `raw/fs`.
 //!
@@ -25,7 +25,8 @@ use apo_envs::mujoco::tasks::{
     Ant, HalfCheetah, Hopper, Humanoid, HumanoidStandup, InvertedDoublePendulum, InvertedPendulum,
     Reacher, Swimmer, Walker2d,
 };
-use apo_envs::mujoco::{steps_per_second, Data, Model, MujocoEnv, Task};
+use apo_envs::mujoco::{Data, Model, MujocoEnv, Task};
+use apo_envs::throughput::steps_per_second;
 use apo_envs::{Action, Env};
 
 /// Linux reports CPU times in `/proc` in ticks of 1/100 s (`USER_HZ`).

@@ -6,7 +6,8 @@ use apo_envs::mujoco::tasks::{
     Ant, HalfCheetah, Hopper, Humanoid, HumanoidStandup, InvertedDoublePendulum, InvertedPendulum,
     Reacher, Swimmer, Walker2d,
 };
-use apo_envs::mujoco::{steps_per_second, MujocoEnv, ObjKind, Task};
+use apo_envs::mujoco::{MujocoEnv, ObjKind, Task};
+use apo_envs::throughput::steps_per_second;
 use apo_envs::{registry, Action, Env, Space, Transition};
 use rand::{Rng, SeedableRng};
 

@@ -12,7 +12,7 @@
 //!   matters ([`Mdp::safe_or_risky`], [`Mdp::chain_gamble`]);
 //! * [`policy`] — [`TabularPolicy`]: `π(a|s)`, with KL divergence and total variation between
 //!   policies;
-//! * [`eval`] — [`Evaluation`]: exact `V`, `Q`, advantages, `J`, the discounted state
+//! * [`exact`] — [`Evaluation`]: exact `V`, `Q`, advantages, `J`, the discounted state
 //!   distribution `d^π`, the second moment and variance of the discounted return (Sobel 1982),
 //!   its split into `MV_π` and `VM_π`, and the action-value variance `ω_π`;
 //! * [`montecarlo`] — sampled discounted returns, to check the exact quantities against.
@@ -42,13 +42,13 @@
 
 pub mod bound;
 pub mod checks;
-pub mod eval;
+pub mod exact;
 pub mod mdp;
 pub mod montecarlo;
 pub mod policy;
 pub mod practical;
 
-pub use eval::Evaluation;
+pub use exact::Evaluation;
 pub use mdp::{Mdp, PROB_TOL};
 pub use montecarlo::{sample_returns, truncation_bound, SampleStats};
 pub use policy::TabularPolicy;

@@ -1,5 +1,7 @@
-//! The metrics of an epoch: one [`ProgressRow`] (the CLI writes them to `progress.csv`) and
-//! one [`EpisodeRecord`] per episode that ended (`episodes.csv`).
+//! The metrics of an epoch: one [`ProgressRow`] ([`crate::run::Run`] writes them to
+//! `progress.csv`) and one [`EpisodeRecord`] per episode that ended (`episodes.csv`). The same
+//! concept as `apo_core::metrics` one layer up: apo-core computes the statistics of a set of
+//! episodes, this module records them per epoch, with the update's numbers beside them.
 //!
 //! Every episode counts: the return statistics of a row (mean, worst, best, spread, CVaR,
 //! quantile, length, the bound and its confidence), of training and of evaluation alike, are

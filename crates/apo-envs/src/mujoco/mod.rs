@@ -12,11 +12,9 @@
 //! - [`guard`]: the GUARD suites (`Goal_Point` … `Chase_Walker`), in the family `guard`.
 //! - [`hand`]: the Shadow Dexterous Hand tasks of Gymnasium-Robotics (`HandReachDense-v3`,
 //!   `HandManipulateBlockDense-v1`, `HandManipulateEggDense-v1`), in the family `hand`.
-//! - [`steps_per_second`], [`vector_steps_per_second`]: the `apo bench env` measurements.
 //!
 //! See `docs/mujoco.md` for the design, the Send/Sync story and the benchmarks.
 
-mod bench;
 mod env;
 mod error;
 #[allow(
@@ -42,7 +40,6 @@ mod render3;
 mod scene;
 pub mod tasks;
 
-pub use bench::{steps_per_second, vector_steps_per_second};
 pub use env::{MujocoEnv, ResetNoise, Sizes, StepContext, Task};
 pub use error::MujocoError;
 pub use library::{check_library, EXPECTED_VERSION, LIBRARY_ENV_VAR};

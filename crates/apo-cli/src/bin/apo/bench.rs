@@ -214,12 +214,12 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             };
             let rate = if num_envs == 1 {
                 let mut e = apo_envs::make_with(&env, &options)?;
-                apo_envs::mujoco::steps_per_second(e.as_mut(), steps as usize, 0)
+                apo_envs::throughput::steps_per_second(e.as_mut(), steps as usize, 0)
             } else {
                 let mut envs = apo_envs::vector::VecEnv::make_with(&env, num_envs, &options)?
                     .with_threads(threads)?;
                 println!("threads={}", envs.threads());
-                apo_envs::mujoco::vector_steps_per_second(&mut envs, steps as usize, 0)
+                apo_envs::throughput::vector_steps_per_second(&mut envs, steps as usize, 0)
             };
             println!("env={env} steps={steps} num_envs={num_envs} physics={physics}");
             println!("steps_per_sec={rate:.1}");

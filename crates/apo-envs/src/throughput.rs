@@ -1,4 +1,4 @@
-//! Throughput of one environment, or of a vector of them, under random actions
+//! Throughput of any environment, or of a vector of them, under random actions
 //! (`apo bench env`).
 
 use std::time::Instant;
