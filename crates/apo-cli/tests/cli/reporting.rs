@@ -1,5 +1,5 @@
 //! Telling the truth to the user: help and `apo config`, flags, summaries, eval, logs,
-//! progress within an epoch, TensorBoard files.
+//! TensorBoard files.
 
 use std::path::Path;
 use std::process::Command;
