@@ -9,6 +9,7 @@ mod common;
 mod baselines;
 mod buffer;
 mod distributions;
+mod docs_links;
 mod fisher;
 mod hvp;
 mod learner;
