@@ -342,13 +342,19 @@ impl apo_train::OnBackend for UpdateBench {
     }
 }
 
-/// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards),
-/// the environments stepped on `threads` threads, and returns each epoch's time split.
-pub fn epoch(config: &apo_train::RunConfig, threads: usize) -> anyhow::Result<Vec<EpochSplit>> {
+/// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards,
+/// also when `stop` is raised: then the epochs done so far are returned), the environments
+/// stepped on `threads` threads, and returns each epoch's time split.
+pub fn epoch(
+    config: &apo_train::RunConfig,
+    threads: usize,
+    stop: &std::sync::atomic::AtomicBool,
+) -> anyhow::Result<Vec<EpochSplit>> {
     struct Train<'a> {
         config: &'a apo_train::RunConfig,
         dir: &'a std::path::Path,
         threads: usize,
+        stop: &'a std::sync::atomic::AtomicBool,
     }
     impl apo_train::OnBackend for Train<'_> {
         type Output = anyhow::Result<()>;
@@ -361,8 +367,7 @@ pub fn epoch(config: &apo_train::RunConfig, threads: usize) -> anyhow::Result<Ve
                 &Default::default(),
                 false,
             )?;
-            let stop = std::sync::atomic::AtomicBool::new(false);
-            while run.epoch(&stop, &mut |_| {})?.is_some() {}
+            while run.epoch(self.stop, &mut |_| {})?.is_some() {}
             Ok(())
         }
     }
@@ -377,10 +382,16 @@ pub fn epoch(config: &apo_train::RunConfig, threads: usize) -> anyhow::Result<Ve
         config,
         dir: &dir,
         threads,
+        stop,
     });
+    let progress = dir.join(apo_train::run_dir::PROGRESS);
     let rows = trained
         .and_then(|t| t)
-        .and_then(|()| apo_train::progress_csv::read(&dir.join(apo_train::run_dir::PROGRESS)));
+        .and_then(|()| match progress.exists() {
+            true => apo_train::progress_csv::read(&progress),
+            // stopped before the first epoch
+            false => Ok(Vec::new()),
+        });
     prepared.discard();
     let rows = rows?;
     let mut previous = (0.0, 0u64);

@@ -10,4 +10,5 @@ pub mod stats;
 mod stats_plot;
 pub mod summary;
 pub mod sweep;
+pub mod terminal;
 pub mod theory;

@@ -728,7 +728,7 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
         .map(|dir| Run::load(dir, options.smooth, options.column.as_deref()))
         .collect::<anyhow::Result<Vec<_>>>()?;
     for run in runs.iter().filter(|r| r.skipped > 0) {
-        eprintln!(
+        apo_train::warnln!(
             "note: {}: left out {} non-finite return value{} (inf or NaN)",
             run.dir.display(),
             run.skipped,

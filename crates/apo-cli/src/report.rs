@@ -175,7 +175,7 @@ pub fn distinct_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
         if seen.insert(canonical) {
             runs.push(path.clone());
         } else {
-            eprintln!("note: {} is listed twice; it counts once", path.display());
+            apo_train::warnln!("note: {} is listed twice; it counts once", path.display());
         }
     }
     Ok(runs)
@@ -286,7 +286,7 @@ pub fn report(
         let mut identity = config.learned_with();
         identity.insert("\u{0}variant".into(), variant.clone());
         if let Some(first) = identities.get(&identity) {
-            eprintln!(
+            apo_train::warnln!(
                 "note: {} is the same run as {} (the same environment, algorithm, settings and seed); it counts once",
                 dir.display(),
                 first.display()
@@ -314,7 +314,7 @@ pub fn report(
         let several = &targets_of[&(env.clone(), algo_name.clone(), variant.clone())];
         let variant = if several.len() > 1 {
             if epochs == several[0] {
-                eprintln!(
+                apo_train::warnln!(
                 "note: the runs of {env} {algo_name}{} have different epoch targets ({}); they are reported apart",
                 if variant.is_empty() { String::new() } else { format!(" ({variant})") },
                 several.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")
@@ -385,7 +385,7 @@ pub fn report(
             Ok(b) => {
                 baselines.insert(env, b);
             }
-            Err(e) => eprintln!("note: no random baseline for {env}, so no scores: {e:#}"),
+            Err(e) => apo_train::warnln!("note: no random baseline for {env}, so no scores: {e:#}"),
         }
     }
     let reference: Vec<Option<(f64, f64)>> = reports

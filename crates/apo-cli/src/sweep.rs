@@ -862,7 +862,7 @@ pub fn cell_results(
         let summary = match summarize(&dir, last) {
             Ok(summary) => summary,
             Err(e) => {
-                eprintln!(
+                apo_train::warnln!(
                     "warning: {}: finished, but its records cannot be read, so it is left out: {e:#}",
                     dir.display()
                 );
@@ -871,7 +871,7 @@ pub fn cell_results(
             }
         };
         if summary.epochs != epochs {
-            eprintln!(
+            apo_train::warnln!(
                 "warning: {}: trained to {} epochs, not this sweep's {epochs}; left out (run the sweep with --epochs {} to count it)",
                 dir.display(),
                 summary.epochs,
@@ -883,7 +883,7 @@ pub fn cell_results(
         match metric.of(&summary).filter(|v| v.is_finite()) {
             Some(v) => values.entry(key).or_default().push(v),
             None => {
-                eprintln!(
+                apo_train::warnln!(
                     "warning: {}: finished, but its records hold no finite value of the metric; left out",
                     dir.display()
                 );

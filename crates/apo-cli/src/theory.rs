@@ -162,10 +162,10 @@ fn drops(values: &[f64], tol: f64) -> (usize, f64) {
 /// Runs the five checks (or only (e)) and prints the report.
 pub fn run(args: &TheoryArgs) -> anyhow::Result<()> {
     let (problems, norm) = args.validate()?;
-    println!(
+    crate::outln!(
         "Theorem 1 on random tabular MDPs: {} states, {} actions, γ {}, π_j logits × {}, k ∈ {:?}, ‖μᵀ‖∞ read as {}, MV cross term {}",
         args.states, args.actions, args.gamma, args.temperature, args.k, args.mu_norm, args.cross_term
-    );
+    )?;
     if !args.practical_only {
         theorem_checks(args, &problems, norm)?;
     }
@@ -177,14 +177,14 @@ fn practical_check(args: &TheoryArgs, problems: &Problems) -> anyhow::Result<()>
     if args.practical_seeds == 0 {
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "(e) the practical APO's trust-region step (δ {}), exact, {} MDPs × {} updates per variant, rewards r ↦ {} · (r + {}):",
         args.max_kl, args.practical_seeds, args.practical_iterations, args.reward_scale, args.reward_offset
-    );
-    println!(
+    )?;
+    crate::outln!(
         "    | k | variant | accepted | full steps | median KL | B raised | B lowered (largest drop) | mean ΔB | mean ΔJ | mean ΔVar | switch on |"
-    );
-    println!("    |---|---|---|---|---|---|---|---|---|---|---|");
+    )?;
+    crate::outln!("    |---|---|---|---|---|---|---|---|---|---|---|")?;
     for &k in &args.k {
         for (name, variant) in practical::variants(k, args.max_kl) {
             let s = practical::run(
@@ -199,7 +199,7 @@ fn practical_check(args: &TheoryArgs, problems: &Problems) -> anyhow::Result<()>
             )
             .with_context(|| format!("check (e), {name}, k {k}"))?;
             let pct = |n: usize| 100.0 * n as f64 / s.updates.max(1) as f64;
-            println!(
+            crate::outln!(
                 "    | {k} | {name} | {:.0} % | {:.0} % | {:.1e} | {} | {} ({:.1e}) | {:+.4} | {:+.4} | {:+.4} | {} |",
                 pct(s.accepted),
                 pct(s.full_steps),
@@ -211,7 +211,7 @@ fn practical_check(args: &TheoryArgs, problems: &Problems) -> anyhow::Result<()>
                 s.mean_j_gain,
                 s.mean_variance_change,
                 s.switch_on
-            );
+            )?;
         }
     }
     Ok(())
@@ -223,17 +223,19 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
 
     let lb = check_lower_bound(&problems, 0..args.seeds, &args.k, args.draws as usize, norm)
         .context("check (a)")?;
-    println!(
+    crate::outln!(
         "(a) M_k^j(π) ≤ B_k(π): {} candidates on {} MDPs, {} violations",
-        lb.cases, args.seeds, lb.violations
-    );
+        lb.cases,
+        args.seeds,
+        lb.violations
+    )?;
     if let Some(w) = &lb.worst {
-        println!("    largest M − B = {:.3e}: {}", w.gap(), describe(w));
+        crate::outln!("    largest M − B = {:.3e}: {}", w.gap(), describe(w))?;
     }
-    println!(
+    crate::outln!(
         "(b) M_k^j(π_j) = B_k(π_j): largest |M − B| at π_j = {:.3e}",
         lb.max_gap_at_pi_j
-    );
+    )?;
 
     for (name, step) in [
         ("exact APO (maximize M_k^j)", Step::Exact),
@@ -273,11 +275,11 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
             }
         }
         let runs = args.k.len() as f64 * args.iteration_seeds as f64;
-        println!(
+        crate::outln!(
             "(c) {name}: B_k decreased in {decreased} of {steps} updates (largest drop {worst:.3e}); mean gain of B_k over {} updates {:.4}",
             args.iterations,
             if runs > 0.0 { gained / runs } else { 0.0 }
-        );
+        )?;
     }
 
     let horizon = selberg_horizon(args.gamma);
@@ -297,11 +299,11 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
         .iter()
         .map(|c| c.empirical - c.confidence)
         .fold(f64::INFINITY, f64::min);
-    println!(
+    crate::outln!(
         "(d) Selberg: P(R ≥ B_k) ≥ 1 − 1/(k²V + 1) on {} cases ({} episodes each, horizon {horizon}): {below} below by more than 3 standard errors; smallest P − bound {margin:.4}",
         cases.len(),
         args.episodes
-    );
+    )?;
     Ok(())
 }
 

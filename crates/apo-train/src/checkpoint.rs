@@ -394,7 +394,7 @@ fn clear(path: &Path) -> anyhow::Result<()> {
         files = ?left,
         "a checkpoint folder held files apo did not write; they were kept"
     );
-    eprintln!(
+    crate::warnln!(
         "warning: {} held files apo did not write ({}); kept them in {}",
         path.display(),
         left.join(", "),

@@ -151,14 +151,9 @@ fn check_writable(dir: &Path) -> anyhow::Result<()> {
         .create_new(true)
         .open(&probe)
         .map_err(anyhow::Error::from)?;
-    crate::removal::remove_created(dir, &[probe_name(&probe)], false)?;
-    Ok(())
-}
-
-fn probe_name(path: &Path) -> String {
-    path.file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default()
+    // the probe is the file just created (`create_new`), so it goes by its own path, also
+    // when `dir` is reached through a symbolic link
+    std::fs::remove_file(&probe).with_context(|| format!("cannot remove {}", probe.display()))
 }
 
 /// Assumed memory where `/proc/meminfo` cannot be read.

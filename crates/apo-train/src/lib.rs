@@ -191,6 +191,16 @@
 //! equal those of a run that never stopped, and the workspace's outside crate
 //! (`tests/external-user`) does the same with the built-in MLP and with a `burn::nn` policy.
 
+/// `eprintln!` that never panics: what cannot be written to standard error (a closed pipe, a
+/// full device) is dropped, since there is nowhere left to report it.
+#[macro_export]
+macro_rules! warnln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($arg)*);
+    }};
+}
+
 pub mod actor;
 pub mod atomic;
 pub mod backend;

@@ -192,7 +192,7 @@ pub fn warn(path: &Path, what: &str, lines: &[String]) {
     }
     const SHOWN: usize = 5;
     let more = lines.len().saturating_sub(SHOWN);
-    eprintln!(
+    crate::warnln!(
         "warning: {}: {} {what}: {}{}",
         path.display(),
         lines.len(),

@@ -417,6 +417,16 @@ impl NewRunDir {
     /// name (`config.toml`, `progress.csv`, `train.log`, `checkpoints`) was not made by apo;
     /// nothing is touched then.
     pub fn prepare(dir: &Path, force: bool) -> anyhow::Result<Self> {
+        if force && crate::removal::is_link(dir) {
+            let target = std::fs::read_link(dir).unwrap_or_default();
+            bail!(
+                "--force {}: it is a symbolic link (to {}), and --force replaces only a run directory itself — \
+                 apo neither removes through a link nor writes a new run over files it cannot remove; pass the \
+                 directory it points to",
+                dir.display(),
+                target.display()
+            );
+        }
         if std::fs::symlink_metadata(dir).is_err() {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("cannot create {}", dir.display()))?;
@@ -492,7 +502,7 @@ impl NewRunDir {
         write_marker(dir, &surviving)?;
         let kept: Vec<String> = kept.into_iter().filter(|n| n != MARKER).collect();
         if !kept.is_empty() {
-            eprintln!(
+            crate::warnln!(
                 "--force kept what apo did not create in {}: {}",
                 dir.display(),
                 kept.join(", ")
@@ -520,7 +530,7 @@ impl NewRunDir {
     pub fn discard(mut self) {
         drop(self.lock.take());
         if let Err(e) = remove_run_files(&self.dir, true, self.created) {
-            eprintln!("warning: cleaning up {}: {e:#}", self.dir.display());
+            crate::warnln!("warning: cleaning up {}: {e:#}", self.dir.display());
         }
     }
 }

@@ -796,7 +796,7 @@ impl EpochVideos {
                 .context("no free name to move a video aside")?;
             std::fs::rename(&out, &aside)
                 .with_context(|| format!("cannot move {} aside", out.display()))?;
-            eprintln!(
+            crate::warnln!(
                 "warning: {} existed; it was moved to {} before the epoch's video was written",
                 out.display(),
                 aside.display()

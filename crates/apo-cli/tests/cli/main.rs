@@ -185,21 +185,29 @@ pub fn plant(dir: &Path, rel: &str, text: &str) -> PathBuf {
     file
 }
 
-/// Every file under `dir` whose content is `text`.
-pub fn find_content(dir: &Path, text: &str) -> Vec<PathBuf> {
+/// Every file under `dir` (folders followed, links not).
+pub fn files_under(dir: &Path) -> Vec<PathBuf> {
     let mut found = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
         for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
             let p = e.path();
-            if p.is_dir() {
+            if e.file_type().is_ok_and(|t| t.is_dir()) {
                 stack.push(p);
-            } else if std::fs::read_to_string(&p).is_ok_and(|t| t == text) {
+            } else {
                 found.push(p);
             }
         }
     }
     found
+}
+
+/// Every file under `dir` whose content is `text`.
+pub fn find_content(dir: &Path, text: &str) -> Vec<PathBuf> {
+    files_under(dir)
+        .into_iter()
+        .filter(|p| std::fs::read_to_string(p).is_ok_and(|t| t == text))
+        .collect()
 }
 
 /// A sweep of one PPO CartPole run per seed, `epochs` epochs of 200 steps, in `out`.

@@ -516,3 +516,116 @@ fn force_removes_only_the_epochs_apo_wrote_and_no_file_shared_by_a_hard_link_is_
         b"mine"
     );
 }
+
+/// `apo args` with standard output (`stdout`) or standard error going to `target`.
+fn apo_into(args: &[&str], stdout: Stdio, stderr: Stdio) -> std::process::ExitStatus {
+    Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args(args)
+        .stdout(stdout)
+        .stderr(stderr)
+        .status()
+        .expect("the apo binary runs")
+}
+
+/// Rule: printing never panics. A full standard output (`/dev/full`) is an error naming it
+/// (exit 1), a closed pipe ends apo quietly (exit 141, as a process SIGPIPE killed), and a
+/// standard error that cannot be written loses the message, not the exit status — in every
+/// subcommand that prints.
+#[test]
+fn a_full_or_closed_standard_output_is_an_error_never_a_panic() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let full = || Stdio::from(std::fs::File::create("/dev/full").expect("/dev/full"));
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["list"],
+        vec!["config", "--algo", "apo", "--env", "CartPole-v1"],
+        vec!["theory", "--states", "3", "--actions", "2", "--seeds", "1"],
+        vec!["eval", "--run", path(&run), "--episodes", "1"],
+        vec!["summary", path(&run)],
+    ];
+    for args in &cases {
+        let out = Command::new(env!("CARGO_BIN_EXE_apo"))
+            .args(args)
+            .stdout(full())
+            .output()
+            .expect("runs");
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot write to standard output"),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+
+        // a reader that went away at once: quiet, 141 (or 0 when all fit in the pipe first)
+        let mut child = Command::new(env!("CARGO_BIN_EXE_apo"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("spawn");
+        drop(child.stdout.take());
+        let out = child.wait_with_output().expect("waits");
+        let err = text(&out.stderr);
+        assert!(
+            matches!(out.status.code(), Some(0 | 141)),
+            "{args:?}: {:?} {err}",
+            out.status
+        );
+        assert!(
+            !err.contains("panicked") && !err.contains("error"),
+            "{args:?}: {err}"
+        );
+    }
+    // an error with a standard error that cannot be written still exits 1
+    let status = apo_into(&["eval", "--run", "no-such-run"], Stdio::null(), full());
+    assert_eq!(status.code(), Some(1));
+}
+
+/// Rule: apo never removes through a symbolic link, so it never replaces through one either:
+/// `train --force` on a link to a run is refused with every file of the run kept, and the
+/// write check of a folder reached through a link leaves nothing behind.
+#[test]
+fn force_refuses_a_linked_run_and_a_linked_output_folder_keeps_no_probe() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let ext = tmp.path().join("ext");
+    std::fs::create_dir(&ext).expect("mkdir");
+    let run = ext.join("run");
+    small(&run, &[]);
+    let config = std::fs::read(run.join("config.toml")).expect("config");
+    let link = tmp.path().join("link");
+    std::os::unix::fs::symlink(&run, &link).expect("symlink");
+    let err = fails(&[
+        "train",
+        "--algo",
+        "trpo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "200",
+        "--quiet",
+        "--force",
+        "--out",
+        path(&link),
+    ]);
+    assert!(
+        err.contains("symbolic link") && err.contains(path(&run)),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(run.join("config.toml")).expect("kept"),
+        config
+    );
+
+    let linked = tmp.path().join("linked");
+    std::os::unix::fs::symlink(&ext, &linked).expect("symlink");
+    ok(&["report", path(&run), "--reps", "10", "--out", path(&linked)]);
+    let probes: Vec<String> = entries(&ext)
+        .into_iter()
+        .filter(|n| n.contains("probe"))
+        .collect();
+    assert!(probes.is_empty(), "{probes:?}");
+}

@@ -102,24 +102,76 @@ fn a_long_bootstrap_shows_a_progress_bar_with_an_estimate_on_a_terminal() {
     assert!(!String::from_utf8_lossy(&piped.stderr).contains("bootstrap"));
 }
 
+/// Rule: every signal that asks a process to stop — SIGTERM (`kill`, schedulers), SIGHUP (a
+/// closed terminal), SIGQUIT (Ctrl-\\), SIGINT (Ctrl-C, `main.rs`) — stops a training the same
+/// way: a checkpoint of its last epoch, 128 + the signal's number, the resume command, and no
+/// temporary file left.
 #[test]
-fn sigterm_checkpoints_and_exits_143_with_the_resume_command() {
+fn every_stop_signal_checkpoints_and_exits_with_its_status_and_the_resume_command() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let run = tmp.path().join("run");
-    let child = long_run(&run);
-    wait_for(&run.join("progress.csv"));
-    signal(&child, "TERM");
-    let (code, stdout, stderr) = finish(child, 120);
-    assert_eq!(code, Some(143), "{stdout}{stderr}");
-    assert!(
-        stdout.contains("interrupted by SIGTERM")
-            && stdout.contains(&format!("apo train --resume {}", path(&run))),
-        "{stdout}"
-    );
-    let done = timeless(&run).len();
-    let state =
-        std::fs::read_to_string(run.join("checkpoints/latest/state.json")).expect("checkpoint");
-    assert!(state.contains(&format!("\"epoch\": {done}")), "{state}");
+    for (name, status) in [("TERM", 143), ("HUP", 129), ("QUIT", 131)] {
+        let run = tmp.path().join(name);
+        let child = long_run(&run);
+        wait_for(&run.join("progress.csv"));
+        signal(&child, name);
+        let (code, stdout, stderr) = finish(child, 120);
+        assert_eq!(code, Some(status), "SIG{name}: {stdout}{stderr}");
+        assert!(
+            stdout.contains(&format!("interrupted by SIG{name}"))
+                && stdout.contains(&format!("apo train --resume {}", path(&run))),
+            "{stdout}"
+        );
+        let done = timeless(&run).len();
+        let state =
+            std::fs::read_to_string(run.join("checkpoints/latest/state.json")).expect("checkpoint");
+        assert!(state.contains(&format!("\"epoch\": {done}")), "{state}");
+        let temps = files_under(&run)
+            .into_iter()
+            .filter(|p| {
+                p.file_name()
+                    .is_some_and(|n| n.to_string_lossy().contains(".tmp"))
+            })
+            .collect::<Vec<_>>();
+        assert!(temps.is_empty(), "SIG{name} left {temps:?}");
+    }
+}
+
+/// An interrupted `apo bench epoch` removes its temporary run directory.
+#[test]
+fn an_interrupted_bench_epoch_leaves_no_temporary_run() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let child = Command::new(env!("CARGO_BIN_EXE_apo"))
+        .args([
+            "bench",
+            "epoch",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--steps-per-epoch",
+            "2000",
+            "--epochs",
+            "200",
+        ])
+        .env("TMPDIR", tmp.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while files_under(tmp.path())
+        .iter()
+        .all(|p| !p.ends_with("progress.csv"))
+    {
+        assert!(Instant::now() < deadline, "no epoch in time");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    signal(&child, "INT");
+    let (code, _, stderr) = finish(child, 120);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("interrupted by SIGINT"), "{stderr}");
+    let left: Vec<_> = std::fs::read_dir(tmp.path()).expect("ls").collect();
+    assert!(left.is_empty(), "{left:?}");
 }
 
 #[test]

@@ -123,22 +123,22 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 repeats,
                 kernels: kernels.resolve(backend),
             })?;
-            println!(
+            apo_cli::outln!(
                 "backend={backend} kernels={kernels} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
                 t.params
-            );
-            println!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries[0]);
-            println!("apo_update_s={:.4} ({})", t.apo_s, t.tries[1]);
-            println!("apo_robust_update_s={:.4} ({})", t.apo_robust_s, t.tries[2]);
-            println!("hvp_s={:.5}", t.hvp_s);
-            println!("fvp_s_burn={:.5}", t.fvp_s[0]);
-            println!("fvp_s_host={:.5}", t.fvp_s[1]);
-            println!("fvp_s_finite_difference={:.5}", t.fvp_fd_s);
+            )?;
+            apo_cli::outln!("trpo_update_s={:.4} ({})", t.trpo_s, t.tries[0])?;
+            apo_cli::outln!("apo_update_s={:.4} ({})", t.apo_s, t.tries[1])?;
+            apo_cli::outln!("apo_robust_update_s={:.4} ({})", t.apo_robust_s, t.tries[2])?;
+            apo_cli::outln!("hvp_s={:.5}", t.hvp_s)?;
+            apo_cli::outln!("fvp_s_burn={:.5}", t.fvp_s[0])?;
+            apo_cli::outln!("fvp_s_host={:.5}", t.fvp_s[1])?;
+            apo_cli::outln!("fvp_s_finite_difference={:.5}", t.fvp_fd_s)?;
             let (burn_step, host_step) = t.value_step_s;
-            println!("value_step_s_burn={burn_step:.5}");
-            println!("value_step_s_host={host_step:.5}");
-            println!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s);
-            println!("apo_robust_over_trpo={:.3}", t.apo_robust_s / t.trpo_s);
+            apo_cli::outln!("value_step_s_burn={burn_step:.5}")?;
+            apo_cli::outln!("value_step_s_host={host_step:.5}")?;
+            apo_cli::outln!("apo_over_trpo={:.3}", t.apo_s / t.trpo_s)?;
+            apo_cli::outln!("apo_robust_over_trpo={:.3}", t.apo_robust_s / t.trpo_s)?;
         }
         BenchCommand::Epoch {
             algo,
@@ -166,13 +166,22 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 spec.observation_dim,
                 apo_train::action_kind(&spec.action_space),
             )?;
-            let split = apo_cli::bench::epoch(&config, threads)?;
-            println!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend} pipeline={}", !no_pipeline);
-            println!(
+            let signals = crate::signals::Signals::install()?;
+            let split = apo_cli::bench::epoch(&config, threads, &signals.stop)?;
+            if signals.stop.load(std::sync::atomic::Ordering::SeqCst) {
+                let signal = signals.which.load(std::sync::atomic::Ordering::SeqCst);
+                anyhow::bail!(
+                    "interrupted by {} after {} epoch(s); the temporary run is removed",
+                    crate::signals::signal_name(signal),
+                    split.len()
+                );
+            }
+            apo_cli::outln!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend} pipeline={}", !no_pipeline)?;
+            apo_cli::outln!(
                 "epoch  total_s  rollout_s  policy_s  value_s  hidden_s  other_s  steps_per_s"
-            );
+            )?;
             for e in &split {
-                println!(
+                apo_cli::outln!(
                     "{:>5}  {:>7.3}  {:>9.3}  {:>8.3}  {:>7.3}  {:>8.3}  {:>7.3}  {:>11.0}",
                     e.epoch,
                     e.total_s,
@@ -182,13 +191,13 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                     e.hidden_s,
                     e.other_s,
                     e.steps_per_s
-                );
+                )?;
             }
             let later = split.get(1..).unwrap_or_default();
             let med = |f: fn(&apo_cli::bench::EpochSplit) -> f64| {
                 apo_cli::bench::median_of(later.iter().map(f))
             };
-            println!(
+            apo_cli::outln!(
                 "median_epochs_2_on: total_s={:.3} rollout_s={:.3} policy_s={:.3} value_s={:.3} hidden_s={:.3} other_s={:.3} steps_per_s={:.0} overlap={:.2}",
                 med(|e| e.total_s),
                 med(|e| e.rollout_s),
@@ -198,8 +207,8 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 med(|e| e.other_s),
                 med(|e| e.steps_per_s),
                 med(|e| (e.hidden_s / e.value_s.max(1e-12)).min(1.0)),
-            );
-            println!("(hidden_s: the time the epoch's parts overlapped, rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout)");
+            )?;
+            apo_cli::outln!("(hidden_s: the time the epoch's parts overlapped, rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout)")?;
         }
         BenchCommand::Env {
             env,
@@ -218,11 +227,11 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             } else {
                 let mut envs = apo_envs::vector::VecEnv::make_with(&env, num_envs, &options)?
                     .with_threads(threads)?;
-                println!("threads={}", envs.threads());
+                apo_cli::outln!("threads={}", envs.threads())?;
                 apo_envs::throughput::vector_steps_per_second(&mut envs, steps as usize, 0)
             };
-            println!("env={env} steps={steps} num_envs={num_envs} physics={physics}");
-            println!("steps_per_sec={rate:.1}");
+            apo_cli::outln!("env={env} steps={steps} num_envs={num_envs} physics={physics}")?;
+            apo_cli::outln!("steps_per_sec={rate:.1}")?;
         }
         BenchCommand::Policy {
             obs,
@@ -242,8 +251,8 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 batch,
                 calls,
             );
-            println!("obs={obs} act={act} batch={batch}");
-            println!("policy_call_us={us:.3}");
+            apo_cli::outln!("obs={obs} act={act} batch={batch}")?;
+            apo_cli::outln!("policy_call_us={us:.3}")?;
         }
     }
     Ok(())

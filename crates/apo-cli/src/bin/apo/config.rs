@@ -55,6 +55,6 @@ pub fn run(args: ConfigArgs) -> anyhow::Result<()> {
             )?
         }
     };
-    print!("{}", config.documented_toml());
+    apo_cli::out!("{}", config.documented_toml())?;
     Ok(())
 }

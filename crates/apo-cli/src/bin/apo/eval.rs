@@ -45,9 +45,9 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     } else {
         String::new()
     };
-    println!(
+    apo_cli::outln!(
         "checkpoint_epoch={epoch} episodes={} mean_return={:.3} std_return={:.3} min_return={:.3} max_return={:.3} mean_length={:.1}{success}{unstable}",
         stats.count, stats.ret_mean, stats.ret_std, stats.ret_min, stats.ret_max, stats.len_mean
-    );
+    )?;
     Ok(())
 }

@@ -151,7 +151,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     #[cfg(feature = "atari")]
     if let Err(e) = apo_atari::register_games() {
-        eprintln!("error: {e}");
+        apo_train::warnln!("error: {e}");
         return ExitCode::FAILURE;
     }
     let done = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
@@ -170,9 +170,13 @@ fn main() -> ExitCode {
         Command::Stats(args) => done(stats::run(&args)),
     };
     result.unwrap_or_else(|e| {
-        eprintln!("error: {e:#}");
+        if apo_cli::terminal::is_closed_pipe(&e) {
+            // the reader went away (`apo list | head -1`): end as a process killed by SIGPIPE
+            return ExitCode::from(141);
+        }
+        apo_train::warnln!("error: {e:#}");
         if let Some(hint) = atari_hint(&e, cfg!(feature = "atari")) {
-            eprintln!("{hint}");
+            apo_train::warnln!("{hint}");
         }
         ExitCode::FAILURE
     })

@@ -33,6 +33,6 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
             column: args.column.clone(),
         },
     )?;
-    println!("wrote {}", args.out.display());
+    apo_cli::outln!("wrote {}", args.out.display())?;
     Ok(())
 }

@@ -85,7 +85,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let rendered = match render_run(&args.run, &args.checkpoint, &options, &out, &signals.stop) {
         Ok(rendered) => rendered,
         Err(e) if signals.stop.load(Ordering::Relaxed) => {
-            eprintln!("{e:#}");
+            apo_train::warnln!("{e:#}");
             return Ok(ExitCode::from(interrupted_status(
                 signals.which.load(Ordering::Relaxed),
             )));
@@ -98,13 +98,13 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         .iter()
         .map(|r| format!("{r:.3}"))
         .collect();
-    println!(
+    apo_cli::outln!(
         "checkpoint_epoch={} episodes={} returns={} frames={} video={}",
         rendered.epoch,
         rendered.result.returns.len(),
         returns.join(","),
         rendered.frames,
         rendered.path.display()
-    );
+    )?;
     Ok(ExitCode::SUCCESS)
 }

@@ -84,10 +84,10 @@ pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     if let Some(Some(bar)) = bar {
         bar.finish_and_clear();
     }
-    print!("{}", report::markdown(&report));
+    apo_cli::out!("{}", report::markdown(&report))?;
     if let Some(out) = &args.out {
         for path in report::write(&report, out, &args.image, args.smooth)? {
-            eprintln!("wrote {}", path.display());
+            apo_train::warnln!("wrote {}", path.display());
         }
     }
     Ok(())

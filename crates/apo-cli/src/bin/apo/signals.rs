@@ -1,6 +1,8 @@
-//! SIGINT and SIGTERM: a training checkpoints and stops on the first and exits at once on the
-//! second, or when its epoch has not ended [`STOP_GRACE`] after the first; a sweep passes each
-//! one on to its running runs and waits for them.
+//! The signals that ask a process to stop ([`STOP_SIGNALS`]: SIGINT from Ctrl-C, SIGTERM from
+//! `kill` and schedulers, SIGHUP from a closed terminal, SIGQUIT from Ctrl-\\): a training
+//! checkpoints and stops on the first and exits at once on the second, or when its epoch has
+//! not ended [`STOP_GRACE`] after the first; a render removes its unfinished file; a sweep
+//! passes each one on to its running runs and waits for them.
 
 /// Signals that come within this of the first count as the first (see [`Signals::install`]).
 pub const SAME_SIGNAL_WITHIN: Duration = Duration::from_millis(500);
@@ -15,8 +17,23 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use signal_hook::consts::{SIGHUP, SIGINT, SIGQUIT, SIGTERM};
 
-/// Exit status of a process stopped by SIGINT (128 + 2) or SIGTERM (128 + 15).
+/// The signals every subcommand that writes files stops on cleanly, one rule for all.
+pub const STOP_SIGNALS: [i32; 4] = [SIGINT, SIGTERM, SIGHUP, SIGQUIT];
+
+/// The name of stop signal `signal` (`SIGINT` for an unknown number).
+pub fn signal_name(signal: usize) -> &'static str {
+    match i32::try_from(signal).unwrap_or(SIGINT) {
+        SIGTERM => "SIGTERM",
+        SIGHUP => "SIGHUP",
+        SIGQUIT => "SIGQUIT",
+        _ => "SIGINT",
+    }
+}
+
+/// Exit status of a process stopped by a signal: 128 + its number (SIGINT 130, SIGTERM 143,
+/// SIGHUP 129, SIGQUIT 131).
 pub fn interrupted_status(signal: usize) -> u8 {
     128u8.saturating_add(u8::try_from(signal).unwrap_or(0))
 }
@@ -36,12 +53,11 @@ impl Signals {
     /// (GNU `timeout` sends its signal to the child and then to the child's process group:
     /// two at once, meant as one).
     pub fn install() -> anyhow::Result<Self> {
-        use signal_hook::consts::{SIGINT, SIGTERM};
         let (stop, which) = (
             Arc::new(AtomicBool::new(false)),
             Arc::new(AtomicUsize::new(0)),
         );
-        let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
+        let mut signals = signal_hook::iterator::Signals::new(STOP_SIGNALS)
             .context("installing the signal handlers")?;
         let (raised, last) = (Arc::clone(&stop), Arc::clone(&which));
         std::thread::spawn(move || {
@@ -82,7 +98,7 @@ impl Signals {
                 if stop.load(Ordering::SeqCst) {
                     let first = *since.get_or_insert_with(Instant::now);
                     if first.elapsed() >= grace && !ended.load(Ordering::SeqCst) {
-                        eprintln!("{}", message());
+                        apo_train::warnln!("{}", message());
                         std::process::exit(i32::from(interrupted_status(
                             which.load(Ordering::SeqCst),
                         )));
@@ -118,9 +134,8 @@ pub struct SweepSignals {
 impl SweepSignals {
     /// Installs the handler thread.
     pub fn install() -> anyhow::Result<Self> {
-        use signal_hook::consts::{SIGINT, SIGTERM};
         use std::sync::atomic::Ordering;
-        let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
+        let mut signals = signal_hook::iterator::Signals::new(STOP_SIGNALS)
             .context("installing the signal handlers")?;
         let handle = signals.handle();
         let received = Arc::new(apo_cli::sweep::Received::default());
@@ -129,7 +144,7 @@ impl SweepSignals {
             for signal in signals.forever() {
                 counter.which.store(signal as usize, Ordering::SeqCst);
                 counter.count.fetch_add(1, Ordering::SeqCst);
-                eprintln!(
+                apo_train::warnln!(
                     "apo sweep: signal {signal} received; passing it on to the running runs and waiting for them"
                 );
             }

@@ -85,9 +85,9 @@ pub fn run(args: &StatsArgs) -> anyhow::Result<()> {
         bar.finish_and_clear();
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&analysis)?);
+        apo_cli::outln!("{}", serde_json::to_string_pretty(&analysis)?)?;
     } else {
-        print!("{}", stats::markdown(&analysis));
+        apo_cli::out!("{}", stats::markdown(&analysis))?;
     }
     Ok(())
 }

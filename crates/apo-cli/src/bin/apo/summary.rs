@@ -27,9 +27,9 @@ pub fn run(args: &SummaryArgs) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     if args.csv {
-        print!("{}", apo_cli::summary::csv(&rows, last)?);
+        apo_cli::out!("{}", apo_cli::summary::csv(&rows, last)?)?;
     } else {
-        print!("{}", apo_cli::summary::table(&rows, last));
+        apo_cli::out!("{}", apo_cli::summary::table(&rows, last))?;
     }
     Ok(())
 }

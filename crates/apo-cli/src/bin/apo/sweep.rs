@@ -122,14 +122,14 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
             bar.set_message(format!("{done}/{run_count}"));
         }
     };
-    println!(
+    apo_cli::outln!(
         "sweep: {} runs ({} environments, {} algorithms, {} seeds) in {}",
         runs.len(),
         spec.envs.len(),
         spec.algos.len(),
         spec.seeds.len(),
         args.out.display()
-    );
+    )?;
     let outcome = sweep::run(&exe, &spec, &runs, &options, &signals.received, &mut tick)?;
     if let Some(bar) = &bar {
         bar.abandon();
@@ -142,10 +142,10 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
     let metric = clap::ValueEnum::to_possible_value(&args.metric)
         .map(|v| v.get_name().to_string())
         .unwrap_or_default();
-    println!(
+    apo_cli::outln!(
         "{metric} (last {}), mean ± std over finished seeds; best cell first:",
         args.last
-    );
+    )?;
     let mut previous: Option<(&str, Algorithm)> = None;
     let width = crate::algorithm_name_width();
     for r in &results {
@@ -172,29 +172,29 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
             (Some(mean), Some(std)) => format!("{mean:>10.2} ± {std:<8.2}"),
             _ => format!("{:>10} ± {:<8}", "-", "-"),
         };
-        println!(
+        apo_cli::outln!(
             "{} {:<12} {:<width$} {:<40} {value} ({} seeds{apart})",
             if best { "*" } else { " " },
             r.env,
             r.algo.name(),
             r.cell,
             r.seeds
-        );
+        )?;
     }
-    println!(
+    apo_cli::outln!(
         "finished {} (skipped {} finished before), failed {}; cells: {}",
         outcome.finished,
         outcome.skipped,
         outcome.failed.len(),
         csv_path.display()
-    );
+    )?;
     for (name, error) in &outcome.failed {
-        eprintln!("failed: {name}: {error}");
+        apo_train::warnln!("failed: {name}: {error}");
     }
     if outcome.interrupted {
-        println!(
+        apo_cli::outln!(
             "interrupted: every running run was checkpointed; run the same command again to resume"
-        );
+        )?;
         return Ok(ExitCode::from(interrupted_status(
             signals.received.which.load(Ordering::SeqCst),
         )));

@@ -134,13 +134,13 @@ fn warn_overridden(flags: &[(&str, &str, String)], sets: &[String], file: Option
         for set in sets {
             if let Some((k, v)) = set.split_once('=') {
                 if k.trim() == *key && apo_train::run_config::parse_value(v.trim()) != flagged {
-                    eprintln!("warning: {flag} {value} overrides --set {set}");
+                    apo_train::warnln!("warning: {flag} {value} overrides --set {set}");
                 }
             }
         }
         if let (Some(table), Some(path)) = (&file_table, file) {
             if let Some(v) = table.get(*key).filter(|v| Ok(*v) != flagged.as_ref()) {
-                eprintln!(
+                apo_train::warnln!(
                     "warning: {flag} {value} overrides {key} = {v} of --config {}",
                     path.display()
                 );
@@ -166,17 +166,17 @@ pub fn train_on_ranks(args: TrainArgs) -> anyhow::Result<ExitCode> {
             "MPI collectives of this rank"
         );
         if comm.rank() == 0 && result.is_ok() {
-            println!(
+            apo_cli::outln!(
                 "MPI: {} ranks; rank 0 made {} collective calls, sent {:.1} MB, spent {:.2} s in them",
                 comm.size(),
                 traffic.calls,
                 traffic.bytes as f64 / 1e6,
                 traffic.seconds
-            );
+            )?;
         }
         if let Err(e) = &result {
-            eprintln!("error (MPI rank {} of {}): {e:#}", comm.rank(), comm.size());
-            eprintln!("ending every rank of the job");
+            apo_train::warnln!("error (MPI rank {} of {}): {e:#}", comm.rank(), comm.size());
+            apo_train::warnln!("ending every rank of the job");
             mpi.abort(1);
         }
     }
@@ -323,26 +323,23 @@ impl apo_train::OnBackend for Open<'_> {
         let run_dir = run.dir();
         if !run.interrupted() {
             if comm.rank() == 0 {
-                println!("run finished: {}", run_dir.display());
+                apo_cli::outln!("run finished: {}", run_dir.display())?;
             }
             return Ok(ExitCode::SUCCESS);
         }
         let signal = self.signals.which.load(Ordering::SeqCst);
-        let name = match signal {
-            s if s == signal_hook::consts::SIGTERM as usize => "SIGTERM",
-            _ => "SIGINT",
-        };
+        let name = crate::signals::signal_name(signal);
         if comm.rank() == 0 {
             let launcher = if comm.is_distributed() {
                 format!("mpirun -n {} ", comm.size())
             } else {
                 String::new()
             };
-            println!(
+            apo_cli::outln!(
                 "interrupted by {name} after epoch {} of {epochs}; checkpoint written. Continue with: {launcher}apo train --resume {}",
                 run.epochs_done(),
                 run_dir.display()
-            );
+            )?;
         }
         Ok(ExitCode::from(interrupted_status(signal)))
     }
