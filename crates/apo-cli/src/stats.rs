@@ -375,11 +375,16 @@ pub struct Analysis {
     pub profiles: Profiles,
 }
 
+/// The largest magnitude of a score: sums and squares of a million such scores stay finite in
+/// `f64` (the statistics add, subtract and square them).
+pub const MAX_SCORE: f64 = 1e150;
+
 /// Reads a score file: CSV with the header `algorithm,task,score` (in any column order; other
 /// columns are ignored) and one row per run. Tasks and algorithms keep their first-seen order.
 ///
 /// # Errors
-/// A missing column, a score that is not a finite number (naming its line), no rows, or an
+/// A missing column, a score that is not a number in [−[`MAX_SCORE`], [`MAX_SCORE`]] (naming
+/// its line and the range), no rows, or an
 /// algorithm without runs on a task that another has (the statistics compare algorithms on the
 /// same tasks).
 pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
@@ -407,10 +412,10 @@ pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
         let score: f64 = field(v)
             .parse()
             .ok()
-            .filter(|s: &f64| s.is_finite())
+            .filter(|s: &f64| s.abs() <= MAX_SCORE)
             .ok_or_else(|| {
                 anyhow::anyhow!(
-                    "line {line}: the score `{}` is not a finite number",
+                    "line {line}: the score `{}` is not a number in [-{MAX_SCORE:e}, {MAX_SCORE:e}]",
                     field(v)
                 )
             })?;
@@ -622,6 +627,22 @@ pub fn markdown(analysis: &Analysis) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_score_beyond_the_range_is_refused_naming_its_line_and_the_range() {
+        for score in ["1.7e308", "-1e151", "inf", "NaN", "x"] {
+            let text = format!("algorithm,task,score\na,t,1\na,t,{score}\n");
+            let Err(err) = read_scores(&text) else {
+                panic!("{score} accepted");
+            };
+            let err = err.to_string();
+            assert!(
+                err.contains("line 3") && err.contains("1e150"),
+                "{score}: {err}"
+            );
+        }
+        assert!(read_scores("algorithm,task,score\na,t,-1e150\nb,t,1e150\n").is_ok());
+    }
 
     fn close(a: f64, b: f64) -> bool {
         (a - b).abs() < 1e-12

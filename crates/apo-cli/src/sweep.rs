@@ -183,10 +183,57 @@ pub struct SweepSpec {
     pub preset: Option<String>,
     /// `--config` of every run.
     pub config: Option<PathBuf>,
+    /// The text of the `--config` file when the sweep was made ([`SweepSpec::config_text_of`]):
+    /// a sweep run again with an edited file is refused, since its runs hold the old one
+    /// (absent in records of sweeps made before it was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub config_text: Option<String>,
     /// `--set` of every run.
     pub sets: Vec<String>,
     /// Environment steps per epoch of every run (`None`: the config's).
     pub steps_per_epoch: Option<usize>,
+}
+
+impl SweepSpec {
+    /// The text of `config` (the sweep's `--config` file), to record in [`SweepSpec::config_text`].
+    ///
+    /// # Errors
+    /// A file that cannot be read, naming it.
+    pub fn config_text_of(config: Option<&Path>) -> anyhow::Result<Option<String>> {
+        config
+            .map(|path| {
+                apo_train::input::read_text(path, "config file", apo_train::input::SMALL_FILE)
+            })
+            .transpose()
+    }
+
+    /// The parts of the sweep in which `self` and `other` differ, by their flag.
+    fn differences(&self, other: &SweepSpec) -> Vec<&'static str> {
+        let mut differ = Vec::new();
+        let mut check = |same: bool, what: &'static str| {
+            if !same {
+                differ.push(what);
+            }
+        };
+        check(self.envs == other.envs, "--env");
+        check(self.algos == other.algos, "--algo");
+        check(self.seeds == other.seeds, "--seeds");
+        check(self.grid == other.grid, "--grid");
+        check(self.preset == other.preset, "--preset");
+        check(self.config == other.config, "--config (the file's path)");
+        check(
+            self.config_text.is_none()
+                || other.config_text.is_none()
+                || self.config_text == other.config_text,
+            "--config (the file's contents: it was edited since the sweep was made)",
+        );
+        check(self.sets == other.sets, "--set");
+        check(
+            self.steps_per_epoch == other.steps_per_epoch,
+            "--steps-per-epoch",
+        );
+        differ
+    }
 }
 
 /// One run of a sweep.
@@ -286,6 +333,19 @@ pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<
             "--grid {}: the axis is given twice; give its values in one --grid",
             axis.key
         );
+    }
+    apo_train::run_config::check_repeated_sets(&spec.sets)?;
+    for axis in &spec.grid {
+        let key = apo_train::run_config::same_key(&axis.key);
+        if let Some(set) = spec.sets.iter().find(|s| {
+            s.split_once('=')
+                .is_some_and(|(k, _)| apo_train::run_config::same_key(k) == key)
+        }) {
+            bail!(
+                "--grid {} and --set {set} set one key twice: the grid gives each run its value; drop the --set",
+                axis.key
+            );
+        }
     }
     if let Some(config) = &spec.config {
         if let Some(section) = apo_train::run_config::file_algorithm(config)? {
@@ -519,10 +579,12 @@ fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
         let old = apo_train::input::read_text(&path, "sweep record", apo_train::input::SMALL_FILE)?;
         let old: SweepSpec = toml::from_str(&old)
             .with_context(|| format!("{} is not a sweep record", path.display()))?;
-        if &old != spec {
+        let differ = old.differences(spec);
+        if !differ.is_empty() {
             bail!(
-                "{} holds another sweep (its sweep.toml differs: environments, algorithms, seeds, grid, preset, config or --set); use a new --out",
-                out.display()
+                "{} holds another sweep: its sweep.toml differs in {}; use a new --out",
+                out.display(),
+                differ.join(", ")
             );
         }
         return Ok(());

@@ -141,6 +141,12 @@ pub enum RenderError {
         /// The cameras the scene has (`track`, `free` and the model's named cameras).
         available: Vec<String>,
     },
+    /// `APO_GL` names no OpenGL platform.
+    #[error("APO_GL={value}: it must be `egl` or `osmesa` (or unset: EGL, then OSMesa)")]
+    UnknownGl {
+        /// The variable's value.
+        value: String,
+    },
     /// No headless OpenGL context could be made.
     #[error(
         "no headless OpenGL for rendering (tried {tried}): {reason}; install Debian's libegl1 \

@@ -51,7 +51,8 @@ pub fn vector_steps_per_second(envs: &mut VecEnv, steps: usize, seed: u64) -> f6
     }
     let n = envs.num_envs();
     let mut rng = StdRng::seed_from_u64(seed);
-    let pool: Vec<f32> = (0..ACTION_POOL)
+    // at least one whole vector step of actions, whatever the number of environments
+    let pool: Vec<f32> = (0..ACTION_POOL.max(n))
         .flat_map(|_| random_action(envs.action_space(), &mut rng))
         .collect();
     let width = envs.act_dim() * n;
@@ -85,5 +86,58 @@ fn random_action(space: &Space, rng: &mut StdRng) -> Vec<f32> {
             })
             .collect(),
         Space::Discrete { n } => vec![rng.random_range(0..(*n).max(1)) as f32],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::env::Transition;
+
+    /// An environment that counts its steps.
+    struct Counting {
+        steps: Arc<AtomicUsize>,
+        space: Space,
+    }
+
+    impl Env for Counting {
+        fn observation_space(&self) -> &Space {
+            &self.space
+        }
+        fn action_space(&self) -> &Space {
+            &self.space
+        }
+        fn reset(&mut self, _: Option<u64>, obs: &mut [f32]) {
+            obs.fill(0.0);
+        }
+        fn step(&mut self, _: Action<'_>, _: &mut [f32]) -> Transition {
+            self.steps.fetch_add(1, Ordering::Relaxed);
+            Transition::default()
+        }
+    }
+
+    #[test]
+    fn every_environment_of_a_vector_wider_than_the_action_pool_is_stepped() {
+        let steps = Arc::new(AtomicUsize::new(0));
+        let n = ACTION_POOL + 76;
+        let envs: Vec<Box<dyn Env>> = (0..n)
+            .map(|_| {
+                Box::new(Counting {
+                    steps: Arc::clone(&steps),
+                    space: Space::uniform_box(1, -1.0, 1.0),
+                }) as Box<dyn Env>
+            })
+            .collect();
+        let mut envs = VecEnv::new(envs).expect("a vector");
+        let rate = vector_steps_per_second(&mut envs, 2 * n, 0);
+        assert_eq!(
+            steps.load(Ordering::Relaxed),
+            2 * n,
+            "two vector steps of {n}"
+        );
+        assert!(rate.is_finite() && rate > 0.0, "{rate}");
     }
 }

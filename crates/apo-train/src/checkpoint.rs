@@ -58,6 +58,10 @@ pub struct TrainState {
     /// same number: each rank's rollout seeds and share of the batch depend on it.
     #[serde(default = "one_rank", skip_serializing_if = "is_one_rank")]
     pub ranks: usize,
+    /// The records `episodes.csv` held when the checkpoint was written (absent in checkpoints
+    /// of runs that kept no count): resuming refuses a record that has lost some.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episode_records: Option<usize>,
 }
 
 fn one_rank() -> usize {
@@ -76,12 +80,19 @@ impl TrainState {
             run,
             vmpo: None,
             ranks: 1,
+            episode_records: None,
         }
     }
 
     /// The same state, of a run trained by `ranks` MPI ranks.
     pub fn with_ranks(mut self, ranks: usize) -> Self {
         self.ranks = ranks;
+        self
+    }
+
+    /// The same state, with the number of records of the run's `episodes.csv`.
+    pub fn with_episode_records(mut self, records: usize) -> Self {
+        self.episode_records = Some(records);
         self
     }
 }
@@ -262,22 +273,43 @@ where
         .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
 
     let (latest, previous) = (root.join("latest"), root.join("previous"));
-    clear(&previous)?;
-    if latest.exists() {
-        std::fs::rename(&latest, &previous)?;
-    }
-    std::fs::rename(&tmp, &latest)?;
-    atomic::sync_dir(&root)?;
-    clear(&previous)?;
+    swapped(&tmp, || {
+        clear(&previous)?;
+        if latest.exists() {
+            rename(&latest, &previous)?;
+        }
+        rename(&tmp, &latest)?;
+        atomic::sync_dir(&root)?;
+        clear(&previous)
+    })?;
     if keep {
         let kept = root.join(kept_name(state.run.epoch));
         let tmp = root.join(format!(".tmp-keep-{}", state.run.epoch));
-        write_into(&tmp, learner, state, shapes)?;
-        clear(&kept)?;
-        std::fs::rename(&tmp, &kept)?;
-        atomic::sync_dir(&root)?;
+        write_into(&tmp, learner, state, shapes)
+            .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
+        swapped(&tmp, || {
+            clear(&kept)?;
+            rename(&tmp, &kept)?;
+            Ok(atomic::sync_dir(&root)?)
+        })?;
     }
     Ok(())
+}
+
+/// Renames `from` to `to`, naming both on an error.
+fn rename(from: &Path, to: &Path) -> anyhow::Result<()> {
+    std::fs::rename(from, to)
+        .with_context(|| format!("cannot move {} to {}", from.display(), to.display()))
+}
+
+/// Runs `swap` (the renames that put the written checkpoint `tmp` in place); when it fails,
+/// removes what is left of `tmp` (the checkpoint before it stays, as `latest` or `previous`).
+fn swapped(tmp: &Path, swap: impl FnOnce() -> anyhow::Result<()>) -> anyhow::Result<()> {
+    let done = swap();
+    if done.is_err() {
+        let _ = clear(tmp);
+    }
+    done
 }
 
 /// Writes a checkpoint of `learner` and `state` into `run`'s `checkpoints/best` (the best
@@ -298,13 +330,15 @@ where
     write_into(&tmp, learner, state, shapes)
         .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
     let (best, old) = (root.join(BEST), root.join(".old-best"));
-    clear(&old)?;
-    if best.exists() {
-        std::fs::rename(&best, &old)?;
-    }
-    std::fs::rename(&tmp, &best)?;
-    atomic::sync_dir(&root)?;
-    clear(&old)
+    swapped(&tmp, || {
+        clear(&old)?;
+        if best.exists() {
+            rename(&best, &old)?;
+        }
+        rename(&tmp, &best)?;
+        atomic::sync_dir(&root)?;
+        clear(&old)
+    })
 }
 
 /// Removes the unfinished checkpoints a stopped process left in `root` (`.tmp-<N>`,

@@ -89,6 +89,8 @@ pub struct EpisodeLog {
     /// The file's bytes: the header and every record so far.
     bytes: Vec<u8>,
     header: bool,
+    /// The records so far.
+    records: usize,
 }
 
 impl EpisodeLog {
@@ -98,7 +100,13 @@ impl EpisodeLog {
             path: path.to_path_buf(),
             bytes: Vec::new(),
             header: false,
+            records: 0,
         }
+    }
+
+    /// The records so far.
+    pub fn records(&self) -> usize {
+        self.records
     }
 
     /// The log of a run resumed at the end of epoch `epoch`: the records of `path` up to that
@@ -129,6 +137,7 @@ impl EpisodeLog {
             writer.serialize(record)?;
         }
         self.header |= !records.is_empty();
+        self.records += records.len();
         self.bytes = writer
             .into_inner()
             .map_err(|e| anyhow::anyhow!("csv: {e}"))?;

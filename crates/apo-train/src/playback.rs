@@ -141,6 +141,15 @@ impl LoadedRun {
             &Shapes::of(&config, obs_dim, action),
             &device,
         )?;
+        if let Which::Epoch(epoch) = which {
+            if state.run.epoch != *epoch {
+                anyhow::bail!(
+                    "{} holds the state of epoch {}, not of epoch {epoch}: the folder was renamed or replaced",
+                    from.display(),
+                    state.run.epoch
+                );
+            }
+        }
         let policy = HostPolicy::new(&learner.policy_on::<NdArray>(&device), action);
         Ok(LoadedRun {
             config,

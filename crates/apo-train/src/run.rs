@@ -427,6 +427,17 @@ where
                     if writer {
                         check_rows(&on_disk, &state, &progress_path, &from)?;
                         episodes = EpisodeLog::resume(&episodes_path, state.run.epoch)?;
+                        if let Some(counted) = state.episode_records.filter(|&n| n > episodes.records()) {
+                            bail!(
+                                "{} holds {} episode records of epochs 1..={}, the checkpoint in {} counted {counted} \
+                                 (was the file deleted, emptied or edited?). Resuming would lose them; restore the file, \
+                                 or start a new run with another --out",
+                                episodes_path.display(),
+                                episodes.records(),
+                                state.run.epoch,
+                                from.display()
+                            );
+                        }
                     }
                     rows = on_disk;
                     if rows.len() > state.run.epoch {
@@ -644,7 +655,11 @@ where
     }
 
     fn state(&self) -> TrainState {
-        TrainState::new(self.trainer.state().clone()).with_ranks(self.comm.size())
+        let state = TrainState::new(self.trainer.state().clone()).with_ranks(self.comm.size());
+        match &self.files {
+            Some(files) => state.with_episode_records(files.episodes.records()),
+            None => state,
+        }
     }
 
     /// Whether every epoch of the config has run.
@@ -725,16 +740,32 @@ fn check_rows(
     from: &Path,
 ) -> anyhow::Result<()> {
     if rows.len() < state.run.epoch {
+        // the epochs of 1..=checkpoint that have no row, as ranges
+        let mut epochs: Vec<usize> = rows
+            .iter()
+            .map(|r| r.epoch)
+            .filter(|&e| e <= state.run.epoch)
+            .collect();
+        epochs.push(state.run.epoch + 1);
+        let missing: Vec<String> = progress_csv::gaps(epochs)
+            .into_iter()
+            .map(|(a, b)| {
+                if a == b {
+                    a.to_string()
+                } else {
+                    format!("{a}..={b}")
+                }
+            })
+            .collect();
         bail!(
-            "{} has {} epoch rows but the checkpoint in {} is at epoch {}: the rows of epochs {}..={} are missing \
-             (was the file deleted, emptied or replaced?). Resuming would lose them; restore the file, or start a new \
+            "{} has {} epoch rows but the checkpoint in {} is at epoch {}: the rows of epoch(s) {} are missing \
+             (was the file edited, emptied or replaced?). Resuming would lose them; restore the file, or start a new \
              run with another --out",
             progress_path.display(),
             rows.len(),
             from.display(),
             state.run.epoch,
-            rows.len() + 1,
-            state.run.epoch
+            missing.join(", ")
         );
     }
     for (i, row) in rows.iter().take(state.run.epoch).enumerate() {

@@ -828,17 +828,21 @@ pub fn check_repeated_sets(sets: &[String]) -> anyhow::Result<()> {
         let Some((key, _)) = set.split_once('=') else {
             continue;
         };
-        let mut parts: Vec<&str> = key.trim().split('.').collect();
-        // `algo.<name>.<key>` and `algo.<key>` name the same key of a run's algorithm
-        if parts.len() > 2 && parts[0] == "algo" && parts[1].parse::<Algorithm>().is_ok() {
-            parts.remove(1);
-        }
-        let normalized = parts.join(".");
-        if let Some(first) = seen.insert(normalized, set) {
+        if let Some(first) = seen.insert(same_key(key), set) {
             anyhow::bail!("--set {first} and --set {set} set one key twice; give it once");
         }
     }
     Ok(())
+}
+
+/// The key `key` names, the same for every way of writing it: `algo.<name>.<key>` and
+/// `algo.<key>` name the same key of a run's algorithm.
+pub fn same_key(key: &str) -> String {
+    let mut parts: Vec<&str> = key.trim().split('.').collect();
+    if parts.len() > 2 && parts[0] == "algo" && parts[1].parse::<Algorithm>().is_ok() {
+        parts.remove(1);
+    }
+    parts.join(".")
 }
 
 /// A `--set` value: TOML syntax (`0.99`, `true`, `[64, 64]`, `"x"`), or a bare string.

@@ -204,6 +204,20 @@ pub fn progress_of(dir: &Path) -> anyhow::Result<PathBuf> {
     if std::fs::symlink_metadata(&path).is_ok() {
         return Ok(path);
     }
+    match std::fs::metadata(dir) {
+        Err(e) => bail!("{}: {e}", dir.display()),
+        Ok(m) if !m.is_dir() => bail!(
+            "{} is not a run directory: it is not a folder",
+            dir.display()
+        ),
+        Ok(_) => {}
+    }
+    if std::fs::symlink_metadata(dir.join(CONFIG)).is_err() {
+        bail!(
+            "{} is not a run directory: it has neither {PROGRESS} nor {CONFIG}",
+            dir.display()
+        );
+    }
     if check_resumable(dir).is_err() {
         bail!(
             "{} holds a config.toml but no run (neither apo's marker nor a checkpoint): train one with \
@@ -447,7 +461,12 @@ impl NewRunDir {
         // an apo stopped before it had written anything but its temporary files left only those
         crate::atomic::remove_dead_temps(dir, None);
         let entries = crate::removal::entry_names(dir)?;
-        if entries.iter().all(|n| n == LOCK || n == MARKER) {
+        // a folder another apo is making a run in at this moment holds its lock, marker and
+        // their live temporary files: the lock decides between the two
+        let ours = |n: &String| {
+            n == LOCK || n == MARKER || crate::atomic::temp_target(n).is_some_and(|t| t == MARKER)
+        };
+        if entries.iter().all(ours) {
             claim_new(dir, &[LOCK])?;
             let lock = RunLock::acquire(dir)?;
             return Ok(Self {

@@ -171,6 +171,29 @@ fn a_folder_with_a_config_but_no_run_is_named_so_by_eval_render_and_resume() {
     );
 }
 
+/// A reader given something that is not a run says what it is — missing, a file, a folder
+/// with neither records nor a config — and never claims a `config.toml` that is not there.
+#[test]
+fn a_path_that_is_no_run_is_named_for_what_it_is() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let file = tmp.path().join("file");
+    std::fs::write(&file, "x").expect("write");
+    let empty = tmp.path().join("empty");
+    std::fs::create_dir(&empty).expect("mkdir");
+    let missing = tmp.path().join("missing");
+    for (dir, says) in [
+        (&missing, "No such file"),
+        (&file, "not a folder"),
+        (&empty, "neither progress.csv nor config.toml"),
+    ] {
+        let err = fails(&["summary", path(dir)]);
+        assert!(
+            err.contains(says) && !err.contains("holds a config.toml"),
+            "{err}"
+        );
+    }
+}
+
 #[test]
 fn a_score_file_with_another_header_is_shown_its_own_header() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -432,4 +455,41 @@ fn errors_name_the_culprit_and_are_said_once() {
         "{err}"
     );
     assert!(!never.exists());
+}
+
+/// Two trainings started at once into one new folder: one trains, the other is refused for
+/// the true reason — the folder is in use, or already holds a run — never "apo did not make it".
+#[test]
+fn the_loser_of_a_creation_race_is_told_the_true_reason() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    for round in 0..3 {
+        let dir = tmp.path().join(format!("race{round}"));
+        let args = [
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(&dir),
+        ];
+        let (a, b) = (spawn(&args), spawn(&args));
+        let (a, b) = (finish(a, 120), finish(b, 120));
+        let codes = [a.0, b.0];
+        assert!(codes.contains(&Some(0)), "one of them trains: {a:?} {b:?}");
+        for (code, _, stderr) in [a, b] {
+            if code != Some(0) {
+                assert!(
+                    stderr.contains("in use by another apo process")
+                        || stderr.contains("already exists; pass --force"),
+                    "{stderr}"
+                );
+            }
+        }
+    }
 }

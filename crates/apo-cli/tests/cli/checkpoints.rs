@@ -17,6 +17,36 @@ fn resume_with_epochs_records_the_new_target() {
     assert!(err.contains("more than epochs = 1"), "{err}");
 }
 
+/// The episode record is part of a run's record: resuming refuses an `episodes.csv` that lost
+/// records the checkpoint counted (deleted, emptied, cut), keeping every file.
+#[test]
+fn resume_refuses_an_episode_record_that_lost_what_the_checkpoint_counted() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    train(&run, "ppo", &[]);
+    let episodes = run.join("episodes.csv");
+    let saved = std::fs::read_to_string(&episodes).expect("episodes.csv");
+    let cut: String = saved.lines().take(3).map(|l| format!("{l}\n")).collect();
+    for (case, content) in [
+        ("deleted", None),
+        ("emptied", Some(String::new())),
+        ("cut", Some(cut)),
+    ] {
+        match &content {
+            None => std::fs::remove_file(&episodes).expect("rm"),
+            Some(text) => std::fs::write(&episodes, text).expect("write"),
+        }
+        let err = fails(&["train", "--resume", path(&run), "--epochs", "4", "--quiet"]);
+        assert!(
+            err.contains("episodes.csv") && err.contains("counted"),
+            "{case}: {err}"
+        );
+        assert_eq!(timeless(&run).len(), 3, "{case}: progress.csv kept");
+        std::fs::write(&episodes, &saved).expect("restore");
+    }
+    ok(&["train", "--resume", path(&run), "--epochs", "4", "--quiet"]);
+}
+
 #[test]
 fn resume_refuses_when_progress_and_checkpoint_disagree() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -42,10 +72,18 @@ fn resume_refuses_when_progress_and_checkpoint_disagree() {
         .expect("header")
         .to_string()
         + "\n";
-    for (case, content) in [
-        ("missing", None),
-        ("empty", Some(String::new())),
-        ("header only", Some(header)),
+    let text = String::from_utf8_lossy(&saved).to_string();
+    let without_first: String = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| *i != 1)
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    for (case, content, missing) in [
+        ("missing", None, "1..=2"),
+        ("empty", Some(String::new()), "1..=2"),
+        ("header only", Some(header), "1..=2"),
+        ("first row deleted", Some(without_first), "1 "),
     ] {
         match &content {
             None => std::fs::remove_file(&progress).expect("rm"),
@@ -53,7 +91,7 @@ fn resume_refuses_when_progress_and_checkpoint_disagree() {
         }
         let err = fails(&["train", "--resume", path(&run), "--epochs", "3", "--quiet"]);
         assert!(
-            err.contains("rows of epochs 1..=2 are missing"),
+            err.contains(&format!("rows of epoch(s) {missing}")) && err.contains("are missing"),
             "{case}: {err}"
         );
         assert!(

@@ -210,6 +210,33 @@ fn every_count_flag_refuses_the_largest_integer_and_one_past_it_naming_the_flag(
     }
 }
 
+/// The seed flags take every 64-bit seed, and refuse one past the largest or a negative one
+/// with the range, as the count flags do.
+#[test]
+fn every_seed_flag_refuses_values_outside_64_bits_naming_the_flag_and_range() {
+    let flags: &[(&[&str], &str)] = &[
+        (&["eval"], "--seed"),
+        (&["render"], "--seed"),
+        (&["report"], "--ci-seed"),
+        (&["stats"], "--ci-seed"),
+        (&["train"], "--seed"),
+    ];
+    for (command, flag) in flags {
+        for value in ["18446744073709551616", "-1"] {
+            let mut args: Vec<&str> = command.to_vec();
+            let given = format!("{flag}={value}");
+            args.push(&given);
+            let out = apo_within(30, &args);
+            let err = text(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+            assert!(
+                err.contains(flag) && err.contains("is not in 0..="),
+                "{args:?}: {err}"
+            );
+        }
+    }
+}
+
 #[test]
 fn sizes_are_checked_before_anything_is_created() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -473,4 +500,22 @@ fn a_key_set_twice_and_a_list_toml_cannot_hold_are_refused() {
         !out.status.success() && err.contains("hidden") && err.contains("not a TOML list"),
         "{err}"
     );
+}
+
+/// A key given by `--grid` and by `--set` of one sweep is refused before anything is made,
+/// as a key given twice by `--set` is.
+#[test]
+fn a_sweep_refuses_a_key_in_both_grid_and_set_before_making_anything() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    for extra in [
+        ["--grid", "algo.ppo.clip=0.1,0.2", "--set", "algo.clip=0.3"],
+        ["--set", "algo.clip=0.1", "--set", "algo.ppo.clip=0.3"],
+    ] {
+        let result = sweep(&out, "1", &extra);
+        let err = text(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{extra:?}: {err}");
+        assert!(err.contains("set one key twice"), "{extra:?}: {err}");
+        assert!(!out.exists(), "{extra:?}: nothing is made");
+    }
 }

@@ -172,6 +172,15 @@ fn flags_summary_eval_logs_and_tensorboard() {
         err.contains("no checkpoint of epoch 7 (kept: [1, 2])"),
         "{err}"
     );
+    // a kept folder that holds another epoch's state (renamed) is named, not played
+    let kept = run.join("checkpoints");
+    std::fs::remove_dir_all(kept.join("epoch-000001")).expect("rm");
+    std::fs::rename(kept.join("epoch-000002"), kept.join("epoch-000001")).expect("mv");
+    let err = fails(&["eval", "--run", path(&run), "--checkpoint", "1"]);
+    assert!(
+        err.contains("holds the state of epoch 2, not of epoch 1"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -8,7 +8,7 @@ use apo_core::Algorithm;
 use apo_train::progress_csv::{self, ProgressRow};
 use apo_train::run_config::RunConfig;
 
-use super::{fails, ok, path};
+use super::{fails, files_under, ok, path, sweep, text};
 
 /// An epoch's row with mean return `mean`, worst `min`, bound `bound` and confidence 0.5.
 fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
@@ -415,9 +415,12 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
     let cells = std::fs::read_to_string(out.join("cells.csv")).expect("cells.csv");
     assert!(cells.contains("CartPole-v1,trpo,\"-\",1,0,0,1,"), "{cells}");
 
-    // another grid into the same folder is refused
+    // another grid into the same folder is refused, naming what differs
     let err = fails(&refs(&sweep("2", "algo.omega1=0.003")));
-    assert!(err.contains("holds another sweep"), "{err}");
+    assert!(
+        err.contains("holds another sweep") && err.contains("--grid"),
+        "{err}"
+    );
     // a key no algorithm has
     let err = fails(&[
         "sweep",
@@ -500,4 +503,27 @@ fn the_paper_preset_sets_the_reference_choices() {
     );
     let defaults = ok(&["config", "--algo", "trpo", "--env", "Hopper"]);
     assert!(defaults.lines().any(|l| l == "cg_iters = 10"), "{defaults}");
+}
+
+/// A sweep is bound to its `--config` file's contents: run again after the file was edited
+/// (or with another file of the same path), it is refused naming the file, since its runs hold
+/// the old values.
+#[test]
+fn a_sweep_run_again_with_an_edited_config_file_is_refused() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (config, out) = (tmp.path().join("c.toml"), tmp.path().join("sweep"));
+    std::fs::write(&config, "env = \"CartPole-v1\"\n[algo.ppo]\nclip = 0.25\n").expect("write");
+    let first = sweep(&out, "1", &["--config", path(&config)]);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    std::fs::write(&config, "env = \"CartPole-v1\"\n[algo.ppo]\nclip = 0.35\n").expect("edit");
+    let again = sweep(&out, "2", &["--config", path(&config)]);
+    let err = text(&again.stderr);
+    assert_eq!(again.status.code(), Some(1), "{err}");
+    assert!(err.contains("the file's contents"), "{err}");
+    let run_config = files_under(&out)
+        .into_iter()
+        .find(|p| p.ends_with("config.toml"))
+        .expect("a run");
+    let kept = std::fs::read_to_string(run_config).expect("read");
+    assert!(kept.contains("clip = 0.25"), "{kept}");
 }

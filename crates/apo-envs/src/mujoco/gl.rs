@@ -108,9 +108,8 @@ impl GlContext {
             "osmesa" => &["osmesa"],
             "" => &["egl", "osmesa"],
             other => {
-                return Err(RenderError::NoDisplay {
-                    tried: format!("{GL_ENV_VAR}={other}"),
-                    reason: format!("{GL_ENV_VAR} must be `egl` or `osmesa`"),
+                return Err(RenderError::UnknownGl {
+                    value: other.to_string(),
                 })
             }
         };

@@ -16,8 +16,8 @@ pub struct EvalArgs {
     /// Act with the mean (Gaussian) or most likely (categorical) action.
     #[arg(long)]
     deterministic: bool,
-    /// Seed of the evaluation episodes.
-    #[arg(long, default_value_t = 12345)]
+    /// Seed of the evaluation episodes; 0..=18446744073709551615.
+    #[arg(long, default_value_t = 12345, value_parser = apo_cli::flags::count::<u64>(0, u64::MAX))]
     seed: u64,
     /// Which checkpoint: `latest`, `best` (the best evaluation of a run with eval_every), or an
     /// epoch kept by keep_checkpoint_every.

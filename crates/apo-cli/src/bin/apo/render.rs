@@ -26,8 +26,8 @@ pub struct RenderArgs {
     /// Act with the mean (Gaussian) or most likely (categorical) action.
     #[arg(long)]
     deterministic: bool,
-    /// Seed of the episodes: the same seed plays the same episodes as `apo eval --seed`.
-    #[arg(long, default_value_t = 12345)]
+    /// Seed of the episodes: the same seed plays the same episodes as `apo eval --seed`; 0..=18446744073709551615.
+    #[arg(long, default_value_t = 12345, value_parser = apo_cli::flags::count::<u64>(0, u64::MAX))]
     seed: u64,
     /// The video: `.gif`, or `.mp4` (needs ffmpeg). Default: <run>/videos/render.gif (apo's
     /// own file in the run, replaced by each render).

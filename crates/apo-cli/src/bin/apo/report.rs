@@ -33,8 +33,8 @@ pub struct ReportArgs {
     /// Bootstrap resamples of each interval of the statistics section; 1..=10000000.
     #[arg(long, default_value_t = 2000, value_parser = apo_cli::flags::count::<usize>(1, 10_000_000))]
     reps: usize,
-    /// Seed of the bootstrap (the same seed gives the same report).
-    #[arg(long, default_value_t = 0)]
+    /// Seed of the bootstrap (the same seed gives the same report); 0..=18446744073709551615.
+    #[arg(long, default_value_t = 0, value_parser = apo_cli::flags::count::<u64>(0, u64::MAX))]
     ci_seed: u64,
 }
 

@@ -13,8 +13,8 @@ pub struct StatsArgs {
     /// Bootstrap resamples of each interval; 1..=10000000.
     #[arg(long, default_value_t = 2000, value_parser = apo_cli::flags::count::<usize>(1, 10_000_000))]
     reps: usize,
-    /// Seed of the bootstrap (the same seed gives the same intervals).
-    #[arg(long, default_value_t = 0)]
+    /// Seed of the bootstrap (the same seed gives the same intervals); 0..=18446744073709551615.
+    #[arg(long, default_value_t = 0, value_parser = apo_cli::flags::count::<u64>(0, u64::MAX))]
     ci_seed: u64,
     /// Thresholds of the performance profiles, `LOW:HIGH:N` (N evenly spaced values; default:
     /// 101 from the lowest to the highest score).

@@ -83,6 +83,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
             .and_then(|p| clap::ValueEnum::to_possible_value(&p))
             .map(|v| v.get_name().to_string()),
         config: args.config.clone(),
+        config_text: sweep::SweepSpec::config_text_of(args.config.as_deref())?,
         sets: {
             apo_train::run_config::check_repeated_sets(&args.sets)?;
             args.sets.clone()
