@@ -37,7 +37,7 @@ mod ffi {
             max_frames: c_int,
         ) -> *mut c_void;
         pub fn ale_delete(a: *mut c_void);
-        pub fn ale_supported_rom(rom: *const c_char) -> c_int;
+        pub fn ale_rom_name(rom: *const c_char, out: *mut c_char, cap: c_int) -> c_int;
         pub fn ale_minimal_actions(a: *mut c_void, out: *mut c_int, capacity: c_int) -> c_int;
         pub fn ale_act(a: *mut c_void, action: c_int, reward: *mut c_int) -> c_int;
         pub fn ale_game_over(a: *mut c_void) -> c_int;
@@ -61,6 +61,16 @@ pub enum AtariError {
     /// The ROM file is missing or not one the ALE knows.
     #[error("{0}: not a ROM the ALE supports (missing, or an unknown dump)")]
     Rom(PathBuf),
+    /// The ROM file holds another game than its name says.
+    #[error("{path}: by its MD5 this is the ROM of `{game}`, not of `{expected}` (the file name's game); put the right dump there")]
+    WrongGame {
+        /// The ROM file.
+        path: PathBuf,
+        /// The game the ALE identifies.
+        game: String,
+        /// The game of the file's name (`pong.bin`: `pong`).
+        expected: String,
+    },
     /// A path with a NUL byte.
     #[error("{0}: the path has a NUL byte")]
     Path(PathBuf),
@@ -96,10 +106,32 @@ impl Emulator {
     ) -> Result<Self, AtariError> {
         let c_rom = CString::new(rom.as_os_str().as_encoded_bytes())
             .map_err(|_| AtariError::Path(rom.to_path_buf()))?;
-        // the ALE ends the process on a missing or unknown ROM: check first
-        // SAFETY: valid NUL-terminated path.
-        if !rom.is_file() || unsafe { ffi::ale_supported_rom(c_rom.as_ptr()) } == 0 {
+        // the ALE ends the process on a missing or unknown ROM: check first, and that the dump
+        // is the game its file name says (apo finds a game's ROM by ale-py's file name)
+        if !rom.is_file() {
             return Err(AtariError::Rom(rom.to_path_buf()));
+        }
+        let mut name = [0 as c_char; 256];
+        // SAFETY: valid NUL-terminated path; `name` holds `name.len()` bytes.
+        let len =
+            unsafe { ffi::ale_rom_name(c_rom.as_ptr(), name.as_mut_ptr(), name.len() as c_int) };
+        if len <= 0 {
+            return Err(AtariError::Rom(rom.to_path_buf()));
+        }
+        // SAFETY: the shim wrote a NUL-terminated name into `name`.
+        let game = unsafe { std::ffi::CStr::from_ptr(name.as_ptr()) }
+            .to_string_lossy()
+            .into_owned();
+        let expected = rom
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        if game != expected {
+            return Err(AtariError::WrongGame {
+                path: rom.to_path_buf(),
+                game,
+                expected,
+            });
         }
         // SAFETY: valid NUL-terminated path; the shim catches every exception.
         let raw =

@@ -22,11 +22,17 @@ extern "C" {
 
 const char* ale_last_error() { return last_error.c_str(); }
 
-// 1 when `rom` exists and is a ROM the ALE supports (its MD5 is known), else 0. The ALE ends
-// the process on a missing or unknown ROM, so callers check first.
-int ale_supported_rom(const char* rom) {
+// The game of `rom` as the ALE names it from the file's MD5 (`pong`, `air_raid`), copied with
+// its NUL into `out` (`cap` bytes); its length, or 0 when `rom` is not a ROM the ALE supports,
+// -1 when the name does not fit. The ALE ends the process on a missing or unknown ROM, so
+// callers check first.
+int ale_rom_name(const char* rom, char* out, int cap) {
   try {
-    return ale::ALEInterface::isSupportedROM(rom).has_value() ? 1 : 0;
+    auto name = ale::ALEInterface::isSupportedROM(rom);
+    if (!name.has_value()) return 0;
+    if (cap <= 0 || name->size() + 1 > static_cast<size_t>(cap)) return -1;
+    std::memcpy(out, name->c_str(), name->size() + 1);
+    return static_cast<int>(name->size());
   } catch (const std::exception& e) {
     fail(e);
     return 0;

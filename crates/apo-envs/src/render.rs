@@ -322,6 +322,27 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_missing_opengl_says_what_to_install_and_a_wrong_apo_gl_names_itself() {
+        let missing = RenderError::NoDisplay {
+            tried: "egl, osmesa".into(),
+            reason: "no libEGL.so.1".into(),
+        }
+        .to_string();
+        assert!(
+            missing.contains("libegl1") && missing.contains("libosmesa6"),
+            "{missing}"
+        );
+        let wrong = RenderError::UnknownGl {
+            value: "EGL".into(),
+        }
+        .to_string();
+        assert!(
+            wrong.contains("APO_GL=EGL") && !wrong.contains("install"),
+            "{wrong}"
+        );
+    }
+
+    #[test]
     fn frame_sizes_are_checked() {
         assert!(matches!(Frame::new(0, 10), Err(RenderError::Size { .. })));
         assert!(matches!(
