@@ -23,10 +23,10 @@ fn every_installed_rom_is_its_game_and_another_games_dump_is_refused() {
     std::fs::create_dir_all(&tmp).expect("temp dir");
     let (air_raid, pong) = (dir.join("air_raid.bin"), tmp.join("pong.bin"));
     std::fs::copy(&air_raid, &pong).expect("copy a dump");
-    let err = Emulator::new(&pong, 0, 0.0, 0)
-        .err()
-        .expect("refused")
-        .to_string();
+    let Err(err) = Emulator::new(&pong, 0, 0.0, 0) else {
+        panic!("another game's dump was accepted");
+    };
+    let err = err.to_string();
     std::fs::remove_dir_all(&tmp).expect("the folder this test made");
     assert!(err.contains("air_raid") && err.contains("`pong`"), "{err}");
 }

@@ -249,6 +249,9 @@ pub struct SweepRun {
     pub seed: u64,
     /// The run directory's name.
     pub name: String,
+    /// What the run learns with ([`RunConfig::learned_with`]): a folder of this name that holds
+    /// a run of other settings is not the sweep's, and is left alone.
+    pub learned_with: BTreeMap<String, String>,
 }
 
 impl SweepRun {
@@ -414,12 +417,13 @@ pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<
                         name.push_str(&format!("-{}={v}", axis.short()));
                     }
                     name.push_str(&format!("-s{seed}"));
-                    let run = SweepRun {
+                    let mut run = SweepRun {
                         env: env_name.clone(),
                         algo,
                         cell: cell.clone(),
                         seed,
                         name,
+                        learned_with: BTreeMap::new(),
                     };
                     let mut sets = run.sets(spec);
                     sets.push(format!("seed={seed}"));
@@ -433,6 +437,7 @@ pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<
                         &sets,
                     )
                     .with_context(|| format!("run {}", run.name))?;
+                    run.learned_with = config.learned_with();
                     let env = apo_envs::registry::spec(env_name)?;
                     config
                         .check_memory(
@@ -505,6 +510,50 @@ pub enum RunStatus {
     /// checkpoints (results committed as `config.toml` and `progress.csv`), its progress file
     /// has.
     Finished,
+}
+
+/// Refuses, before anything starts, a folder at a run's place that the sweep would not have
+/// made: a symbolic link (the sweep would train through it, outside its folder), or a run
+/// whose `config.toml` learns with other settings than the sweep gives `run` (it would be
+/// continued and reported as the sweep's).
+///
+/// # Errors
+/// Naming the folder and, for another run, the first setting that differs with both values.
+pub fn check_own(dir: &Path, run: &SweepRun) -> anyhow::Result<()> {
+    if apo_train::removal::is_link(dir) {
+        bail!(
+            "{} is a symbolic link: a sweep trains only in the folders it made inside --out; the sweep stops \
+             and touches nothing (move the link away)",
+            dir.display()
+        );
+    }
+    let config = dir.join(run_dir::CONFIG);
+    if std::fs::symlink_metadata(&config).is_err() {
+        return Ok(());
+    }
+    let found = RunConfig::load(&config)
+        .with_context(|| {
+            format!(
+                "run {}: its config.toml cannot be read; the sweep stops and touches nothing",
+                dir.display()
+            )
+        })?
+        .learned_with();
+    let keys: BTreeSet<&String> = found.keys().chain(run.learned_with.keys()).collect();
+    if let Some(key) = keys
+        .into_iter()
+        .find(|k| found.get(*k) != run.learned_with.get(*k))
+    {
+        let shown = |v: Option<&String>| v.map_or_else(|| "(none)".to_string(), |v| v.clone());
+        bail!(
+            "{} holds a run of other settings than the sweep gives it ({key}: the run has {}, the sweep {}); \
+             the sweep stops and touches nothing (move the run away, or use a new --out)",
+            dir.display(),
+            shown(found.get(key)),
+            shown(run.learned_with.get(key))
+        );
+    }
+    Ok(())
 }
 
 /// Epochs recorded in `dir/progress.csv` (0 without one, or when it cannot be read): for the
@@ -753,6 +802,7 @@ pub fn run(
         .iter()
         .map(|r| {
             let dir = options.out.join(&r.name);
+            check_own(&dir, r)?;
             status(&dir, options.epochs).with_context(|| {
                 format!(
                     "run {}: its checkpoint cannot be read; the sweep stops and touches nothing (repair or move the run)",

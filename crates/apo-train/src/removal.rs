@@ -55,7 +55,7 @@ pub fn remove_created(
 
 /// Whether `path` is a symbolic link (not followed): apo neither reads through nor removes one
 /// where it cleans up.
-pub(crate) fn is_link(path: &Path) -> bool {
+pub fn is_link(path: &Path) -> bool {
     std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink())
 }
 

@@ -285,18 +285,21 @@ where
             config.validate()?;
         }
         check_memory(&config)?;
-        if epochs.is_some() && writer {
-            // the new target is part of the run: a later plain resume continues to it
-            atomic::write(&config_path, config.to_toml().as_bytes())
-                .with_context(|| format!("cannot write {}", config_path.display()))?;
-        }
         let start = Start {
             launch,
             device,
             make,
             video_policy,
         };
-        Self::open(config, dir, start, true, None, lock)
+        let to_write = (epochs.is_some() && writer).then(|| config.to_toml());
+        let run = Self::open(config, dir, start, true, None, lock)?;
+        if let Some(text) = to_write {
+            // the new target is part of the run: a later plain resume continues to it. Written
+            // only now that the checkpoint loaded and accepted it: a refused resume writes nothing
+            atomic::write(&config_path, text.as_bytes())
+                .with_context(|| format!("cannot write {}", config_path.display()))?;
+        }
+        Ok(run)
     }
 
     /// The run's networks and counters, from the latest checkpoint when `resume`.

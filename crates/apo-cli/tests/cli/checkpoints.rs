@@ -47,6 +47,37 @@ fn resume_refuses_an_episode_record_that_lost_what_the_checkpoint_counted() {
     ok(&["train", "--resume", path(&run), "--epochs", "4", "--quiet"]);
 }
 
+/// A refused resume writes nothing: a new `--epochs` target below the epochs done, or with a
+/// damaged checkpoint, leaves `config.toml` as it was, and a plain resume still works.
+#[test]
+fn a_refused_resume_leaves_the_runs_target_as_it_was() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    train(&run, "ppo", &[]);
+    let config = run.join("config.toml");
+    let before = std::fs::read(&config).expect("config.toml");
+    let err = fails(&["train", "--resume", path(&run), "--epochs", "1", "--quiet"]);
+    assert!(err.contains("more than epochs = 1"), "{err}");
+    assert_eq!(
+        std::fs::read(&config).expect("kept"),
+        before,
+        "target below the epochs done"
+    );
+    let policy = run.join("checkpoints/latest/policy.mpk");
+    let saved = std::fs::read(&policy).expect("policy");
+    std::fs::write(&policy, "corrupt").expect("damage");
+    let err = fails(&["train", "--resume", path(&run), "--epochs", "50", "--quiet"]);
+    assert!(err.contains("policy.mpk"), "{err}");
+    assert_eq!(
+        std::fs::read(&config).expect("kept"),
+        before,
+        "damaged checkpoint"
+    );
+    std::fs::write(&policy, saved).expect("repair");
+    ok(&["train", "--resume", path(&run), "--epochs", "4", "--quiet"]);
+    assert_eq!(timeless(&run).len(), 4);
+}
+
 #[test]
 fn resume_refuses_when_progress_and_checkpoint_disagree() {
     let tmp = tempfile::tempdir().expect("tempdir");

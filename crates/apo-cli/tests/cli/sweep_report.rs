@@ -8,7 +8,7 @@ use apo_core::Algorithm;
 use apo_train::progress_csv::{self, ProgressRow};
 use apo_train::run_config::RunConfig;
 
-use super::{fails, files_under, ok, path, sweep, text};
+use super::{fails, files_under, ok, path, sweep, text, timeless};
 
 /// An epoch's row with mean return `mean`, worst `min`, bound `bound` and confidence 0.5.
 fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
@@ -526,4 +526,61 @@ fn a_sweep_run_again_with_an_edited_config_file_is_refused() {
         .expect("a run");
     let kept = std::fs::read_to_string(run_config).expect("read");
     assert!(kept.contains("clip = 0.25"), "{kept}");
+}
+
+/// A sweep trains only in the folders it made: a symbolic link, or a run of other settings, at
+/// one of its runs' places stops the sweep before anything starts, naming it; the link's target
+/// and the other run are untouched.
+#[test]
+fn a_sweep_refuses_a_link_or_a_foreign_run_in_its_place() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let first = sweep(&out, "1", &[]);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    let place = out.join("CartPole-v1-ppo-s0");
+    assert!(place.is_dir(), "the sweep's run");
+    let outside = tmp.path().join("outside");
+    ok(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "300",
+        "--quiet",
+        "--out",
+        path(&outside),
+    ]);
+    let outside_progress = std::fs::read(outside.join("progress.csv")).expect("progress");
+    std::fs::remove_dir_all(&place).expect("rm");
+    std::os::unix::fs::symlink(&outside, &place).expect("symlink");
+    let again = sweep(&out, "2", &[]);
+    let err = text(&again.stderr);
+    assert_eq!(again.status.code(), Some(1), "{err}");
+    assert!(err.contains("symbolic link"), "{err}");
+    std::fs::remove_file(&place).expect("rm link");
+    let copy = std::process::Command::new("cp")
+        .args(["-a", path(&outside), path(&place)])
+        .status()
+        .expect("cp");
+    assert!(copy.success());
+    let again = sweep(&out, "2", &[]);
+    let err = text(&again.stderr);
+    assert_eq!(again.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("other settings") && err.contains("steps_per_epoch"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(outside.join("progress.csv")).expect("kept"),
+        outside_progress
+    );
+    assert_eq!(
+        timeless(&place).len(),
+        1,
+        "the foreign run is not continued"
+    );
 }
