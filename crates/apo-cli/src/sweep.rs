@@ -567,7 +567,8 @@ pub fn epochs_done(dir: &Path) -> usize {
 /// target is finished (a finished run kept without its checkpoints), any other has failed.
 ///
 /// # Errors
-/// A checkpoint whose state cannot be read (the run is then left alone).
+/// A checkpoint whose state cannot be read, or recorded epochs without a checkpoint short of
+/// the target (the run is then left alone).
 pub fn status(dir: &Path, epochs: usize) -> anyhow::Result<RunStatus> {
     if std::fs::symlink_metadata(dir).is_err() {
         return Ok(RunStatus::New);
@@ -581,6 +582,14 @@ pub fn status(dir: &Path, epochs: usize) -> anyhow::Result<RunStatus> {
                 .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
             if recorded >= epochs && dir.join(run_dir::CONFIG).is_file() {
                 RunStatus::Finished
+            } else if recorded > 0 {
+                // recorded epochs are never trained over: the run cannot continue without its
+                // checkpoint, and replacing it would lose them
+                bail!(
+                    "{} records {recorded} epoch(s) but has no checkpoint, so it cannot continue to {epochs}; \
+                     a sweep never replaces recorded epochs (restore its checkpoints, or move the run away)",
+                    dir.display()
+                )
             } else {
                 RunStatus::Failed
             }
@@ -614,8 +623,40 @@ pub struct SweepOutcome {
     pub interrupted: bool,
 }
 
-/// Checks `out/sweep.toml` against `spec` (writing it for a new sweep).
+/// The copy of the sweep's `--config` text its runs are made from (`sweep.toml`'s
+/// `config_text`), so that a file edited while the sweep runs changes none of them.
+pub const CONFIG_COPY: &str = "sweep-config.toml";
+
+/// Writes `out/`[`CONFIG_COPY`] with the recorded config text, or checks the one there.
+fn write_config_copy(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
+    let Some(text) = &spec.config_text else {
+        return Ok(());
+    };
+    let path = out.join(CONFIG_COPY);
+    if std::fs::symlink_metadata(&path).is_ok() {
+        let there =
+            apo_train::input::read_text(&path, "sweep config copy", apo_train::input::SMALL_FILE)?;
+        if &there != text {
+            bail!(
+                "{} differs from the --config text the sweep recorded; apo does not overwrite it: move it away",
+                path.display()
+            );
+        }
+        return Ok(());
+    }
+    apo_train::atomic::write(&path, text.as_bytes())
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Checks `out/sweep.toml` against `spec` (writing it for a new sweep), and the copy of the
+/// config text the runs are made from.
 fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
+    record_spec(out, spec)?;
+    write_config_copy(out, spec)
+}
+
+/// Checks `out/sweep.toml` against `spec` (writing it for a new sweep).
+fn record_spec(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
     let path = out.join("sweep.toml");
     let text = toml::to_string_pretty(spec).context("serializing the sweep")?;
     if std::fs::symlink_metadata(out).is_ok() && !out.is_dir() {
@@ -683,8 +724,15 @@ fn command(
     if let Some(preset) = &spec.preset {
         cmd.arg("--preset").arg(preset);
     }
-    if let Some(config) = &spec.config {
-        cmd.arg("--config").arg(config);
+    match (&spec.config, &spec.config_text) {
+        // the text the sweep recorded, not the file as it is now (it may be edited mid-sweep)
+        (Some(_), Some(_)) => {
+            cmd.arg("--config").arg(options.out.join(CONFIG_COPY));
+        }
+        (Some(config), None) => {
+            cmd.arg("--config").arg(config);
+        }
+        (None, _) => {}
     }
     for set in run.sets(spec) {
         cmd.arg("--set").arg(set);
@@ -805,7 +853,7 @@ pub fn run(
             check_own(&dir, r)?;
             status(&dir, options.epochs).with_context(|| {
                 format!(
-                    "run {}: its checkpoint cannot be read; the sweep stops and touches nothing (repair or move the run)",
+                    "run {}: the sweep stops and touches nothing (repair or move the run)",
                     dir.display()
                 )
             })

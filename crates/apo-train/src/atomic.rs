@@ -103,20 +103,15 @@ pub fn remove_dead_temps(dir: &Path, name: Option<&str>) {
     let _ = crate::removal::remove_created(dir, &dead, false);
 }
 
-/// The name of the file whose temporary file apo made `entry` is
-/// (`.<name>.apo-<pid>-<n>.tmp`, or `.<name>.tmp` of earlier versions); `None` for any other
-/// name. Those are the only temporary files apo removes.
+/// The name of the file whose temporary file apo made `entry` is (`.<name>.apo-<pid>-<n>.tmp`);
+/// `None` for any other name — `.<name>.tmp` included, which may be a user's file. Those are
+/// the only temporary files apo removes.
 pub fn temp_target(entry: &str) -> Option<&str> {
     let inner = entry.strip_prefix('.')?.strip_suffix(".tmp")?;
     let digits = |p: &str| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit());
-    if let Some((name, ids)) = inner.rsplit_once(".apo-") {
-        if let Some((pid, n)) = ids.split_once('-') {
-            if digits(pid) && digits(n) && !name.is_empty() {
-                return Some(name);
-            }
-        }
-    }
-    (!inner.is_empty()).then_some(inner)
+    let (name, ids) = inner.rsplit_once(".apo-")?;
+    let (pid, n) = ids.split_once('-')?;
+    (digits(pid) && digits(n) && !name.is_empty()).then_some(name)
 }
 
 /// Whether `entry` is a temporary file apo made for a file named `name` ([`temp_target`]).
@@ -177,8 +172,8 @@ mod tests {
             assert!(!is_temp_of(&name, "x"), "{name}");
         }
         // a user's file of the old fixed name, or of a similar name, is not apo's
-        assert!(is_temp_of(".x.csv.tmp", "x.csv"));
         for user in [
+            ".x.csv.tmp",
             ".x.csv.mine.tmp",
             ".x.csv.apo-1.tmp",
             ".x.csv.apo-1-2-3.tmp",

@@ -395,17 +395,6 @@ where
         }
         let shapes = Shapes::of(config, trainer.observation_dim(), trainer.action());
         let progress_path = run_dir.join(crate::run_dir::PROGRESS);
-        if writer {
-            // what this run will create, recorded before it exists (the run directory's marker)
-            crate::run_dir::claim_new(
-                run_dir,
-                &[
-                    crate::run_dir::PROGRESS,
-                    crate::run_dir::EPISODES,
-                    crate::run_dir::CHECKPOINTS,
-                ],
-            )?;
-        }
         let episodes_path = run_dir.join(crate::run_dir::EPISODES);
         let mut episodes = EpisodeLog::new(&episodes_path);
         let mut rows = Vec::new();
@@ -472,6 +461,17 @@ where
             }
         }
         let files = if writer {
+            // what this run will create, recorded before it exists (the run directory's
+            // marker), once a resumed run's checkpoint and records passed their checks: a
+            // refused resume writes nothing
+            crate::run_dir::claim_new(
+                run_dir,
+                &[
+                    crate::run_dir::PROGRESS,
+                    crate::run_dir::EPISODES,
+                    crate::run_dir::CHECKPOINTS,
+                ],
+            )?;
             let events = EventWriter::create(run_dir)?;
             if let Some(name) = events.path().file_name() {
                 crate::run_dir::claim(run_dir, &name.to_string_lossy())?;

@@ -458,8 +458,12 @@ impl NewRunDir {
                 dir.display()
             );
         }
-        // an apo stopped before it had written anything but its temporary files left only those
-        crate::atomic::remove_dead_temps(dir, None);
+        // an apo stopped before it had written anything but its temporary files left only those;
+        // they are apo's to remove only in a folder with apo's marker (a refused folder is
+        // never touched)
+        if created_entries(dir)?.is_some() {
+            crate::atomic::remove_dead_temps(dir, None);
+        }
         let entries = crate::removal::entry_names(dir)?;
         // a folder another apo is making a run in at this moment holds its lock, marker and
         // their live temporary files: the lock decides between the two

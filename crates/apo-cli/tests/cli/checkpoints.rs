@@ -74,6 +74,18 @@ fn a_refused_resume_leaves_the_runs_target_as_it_was() {
         "damaged checkpoint"
     );
     std::fs::write(&policy, saved).expect("repair");
+    // a run without apo's marker (written before it existed), refused for an edited config,
+    // gains no marker
+    let marker = run.join(".apo-run");
+    let kept_marker = std::fs::read(&marker).expect("marker");
+    std::fs::remove_file(&marker).expect("rm marker");
+    let text = String::from_utf8_lossy(&before).replace("seed = 7", "seed = 8");
+    std::fs::write(&config, text).expect("edit");
+    let err = fails(&["train", "--resume", path(&run), "--quiet"]);
+    assert!(err.contains("seed"), "{err}");
+    assert!(!marker.exists(), "a refused resume wrote the marker");
+    std::fs::write(&config, &before).expect("restore");
+    std::fs::write(&marker, kept_marker).expect("restore marker");
     ok(&["train", "--resume", path(&run), "--epochs", "4", "--quiet"]);
     assert_eq!(timeless(&run).len(), 4);
 }

@@ -629,3 +629,46 @@ fn force_refuses_a_linked_run_and_a_linked_output_folder_keeps_no_probe() {
         .collect();
     assert!(probes.is_empty(), "{probes:?}");
 }
+
+/// A refused command writes nothing — not even the removal of a file that looks like apo's
+/// own temporary file — and `.<name>.tmp`, the old fixed temporary name, is a user's name.
+#[test]
+fn a_refused_folder_and_files_of_temporary_looking_names_are_left_alone() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mine = tmp.path().join("mine");
+    std::fs::create_dir(&mine).expect("mkdir");
+    let planted = [".report.md.apo-999998-7.tmp", "data.csv"];
+    for name in planted {
+        std::fs::write(mine.join(name), "mine").expect("write");
+    }
+    let err = fails(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "50",
+        "--quiet",
+        "--out",
+        path(&mine),
+    ]);
+    assert!(err.contains("apo did not make it"), "{err}");
+    assert_eq!(entries(&mine), [".report.md.apo-999998-7.tmp", "data.csv"]);
+
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    for name in [".progress.csv.tmp", ".config.toml.tmp"] {
+        std::fs::write(run.join(name), "user data").expect("write");
+    }
+    ok(&["train", "--resume", path(&run), "--epochs", "3", "--quiet"]);
+    for name in [".progress.csv.tmp", ".config.toml.tmp"] {
+        assert_eq!(
+            std::fs::read_to_string(run.join(name)).expect("kept"),
+            "user data",
+            "{name}"
+        );
+    }
+}

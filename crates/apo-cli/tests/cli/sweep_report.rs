@@ -366,7 +366,9 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
     let text = run_sweep(sweep("2", "algo.omega1=0.001,0.01"));
     assert!(text.contains("finished 0 (skipped 6"), "{text}");
     // a finished run kept as its results only (config.toml, progress.csv and the marker, as
-    // a campaign commits them) is skipped too, and a run whose progress falls short is run again
+    // a campaign commits them) is skipped too; a run kept without checkpoints whose progress
+    // falls short stops the sweep (its recorded epochs are never trained over), and once the
+    // user moves it away it is run anew
     let copy = tmp.path().join("copy");
     std::fs::create_dir(&copy).expect("mkdir");
     for file in ["sweep.toml", "cells.csv"] {
@@ -382,6 +384,10 @@ fn sweep_runs_the_grid_resumes_extends_and_refuses_another_sweep() {
     progress_csv::write(&short, &first[..1]).expect("write");
     let mut again = sweep("2", "algo.omega1=0.001,0.01");
     *again.last_mut().expect("--out") = path(&copy).into();
+    let err = fails(&refs(&again));
+    assert!(err.contains("never replaces recorded epochs"), "{err}");
+    assert_eq!(progress_csv::read(&short).expect("kept").len(), 1);
+    std::fs::remove_dir_all(copy.join(names[5])).expect("the user moves it away");
     let text = run_sweep(again);
     assert!(text.contains("finished 1 (skipped 5"), "{text}");
     assert_eq!(apo_cli::sweep::epochs_done(&copy.join(names[5])), 2);
@@ -583,4 +589,70 @@ fn a_sweep_refuses_a_link_or_a_foreign_run_in_its_place() {
         1,
         "the foreign run is not continued"
     );
+}
+
+/// A sweep never trains over recorded epochs: a run kept without its checkpoints, short of a
+/// raised target, stops the sweep before anything starts, its files kept.
+#[test]
+fn a_sweep_refuses_to_replace_a_run_with_recorded_epochs_and_no_checkpoint() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let first = sweep(&out, "1", &[]);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    let run = out.join("CartPole-v1-ppo-s0");
+    std::fs::remove_dir_all(run.join("checkpoints")).expect("rm");
+    let progress = std::fs::read(run.join("progress.csv")).expect("progress");
+    let again = sweep(&out, "2", &[]);
+    let err = text(&again.stderr);
+    assert_eq!(again.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("no checkpoint") && err.contains("never replaces"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(run.join("progress.csv")).expect("kept"),
+        progress
+    );
+}
+
+/// The runs of a sweep are made from the `--config` text it recorded: a file edited while the
+/// sweep runs changes none of them.
+#[test]
+fn a_config_file_edited_during_a_sweep_changes_none_of_its_runs() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (config, out) = (tmp.path().join("c.toml"), tmp.path().join("sweep"));
+    std::fs::write(&config, "env = \"CartPole-v1\"\n[algo.ppo]\ngamma = 0.99\n").expect("write");
+    let child = super::spawn(&[
+        "sweep",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--seeds",
+        "0,1",
+        "--epochs",
+        "2",
+        "--steps-per-epoch",
+        "200",
+        "--jobs",
+        "1",
+        "--quiet",
+        "--config",
+        path(&config),
+        "--out",
+        path(&out),
+    ]);
+    super::wait_for(&out.join("CartPole-v1-ppo-s0").join("progress.csv"));
+    std::fs::write(&config, "env = \"CartPole-v1\"\n[algo.ppo]\ngamma = 0.5\n").expect("edit");
+    let (code, _, stderr) = super::finish(child, 300);
+    assert_eq!(code, Some(0), "{stderr}");
+    for seed in ["0", "1"] {
+        let run_config =
+            std::fs::read_to_string(out.join(format!("CartPole-v1-ppo-s{seed}/config.toml")))
+                .expect("config.toml");
+        assert!(
+            run_config.contains("gamma = 0.99"),
+            "seed {seed}: {run_config}"
+        );
+    }
 }
