@@ -272,16 +272,7 @@ where
     write_into(&tmp, learner, state, shapes)
         .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
 
-    let (latest, previous) = (root.join("latest"), root.join("previous"));
-    swapped(&tmp, || {
-        clear(&previous)?;
-        if latest.exists() {
-            rename(&latest, &previous)?;
-        }
-        rename(&tmp, &latest)?;
-        atomic::sync_dir(&root)?;
-        clear(&previous)
-    })?;
+    swap_in(&root, &tmp, "latest", "previous")?;
     if keep {
         let kept = root.join(kept_name(state.run.epoch));
         let tmp = root.join(format!(".tmp-keep-{}", state.run.epoch));
@@ -300,6 +291,22 @@ where
 fn rename(from: &Path, to: &Path) -> anyhow::Result<()> {
     std::fs::rename(from, to)
         .with_context(|| format!("cannot move {} to {}", from.display(), to.display()))
+}
+
+/// Puts the written checkpoint `tmp` in place as `root/name`: the one there moves aside to
+/// `root/aside`, `tmp` takes its name, the directory is synced and the old one removed — a
+/// crash leaves the old or the new one complete. On a failure what is left of `tmp` goes.
+fn swap_in(root: &Path, tmp: &Path, name: &str, aside: &str) -> anyhow::Result<()> {
+    let (target, aside) = (root.join(name), root.join(aside));
+    swapped(tmp, || {
+        clear(&aside)?;
+        if target.exists() {
+            rename(&target, &aside)?;
+        }
+        rename(tmp, &target)?;
+        atomic::sync_dir(root)?;
+        clear(&aside)
+    })
 }
 
 /// Runs `swap` (the renames that put the written checkpoint `tmp` in place); when it fails,
@@ -329,16 +336,7 @@ where
     clear(&tmp)?;
     write_into(&tmp, learner, state, shapes)
         .with_context(|| format!("writing the checkpoint into {}", tmp.display()))?;
-    let (best, old) = (root.join(BEST), root.join(".old-best"));
-    swapped(&tmp, || {
-        clear(&old)?;
-        if best.exists() {
-            rename(&best, &old)?;
-        }
-        rename(&tmp, &best)?;
-        atomic::sync_dir(&root)?;
-        clear(&old)
-    })
+    swap_in(&root, &tmp, BEST, ".old-best")
 }
 
 /// Removes the unfinished checkpoints a stopped process left in `root` (`.tmp-<N>`,

@@ -464,20 +464,7 @@ fn the_loser_of_a_creation_race_is_told_the_true_reason() {
     let tmp = tempfile::tempdir().expect("tempdir");
     for round in 0..3 {
         let dir = tmp.path().join(format!("race{round}"));
-        let args = [
-            "train",
-            "--algo",
-            "ppo",
-            "--env",
-            "CartPole-v1",
-            "--epochs",
-            "1",
-            "--steps-per-epoch",
-            "200",
-            "--quiet",
-            "--out",
-            path(&dir),
-        ];
+        let args = small_args(&dir);
         let (a, b) = (spawn(&args), spawn(&args));
         let (a, b) = (finish(a, 120), finish(b, 120));
         let codes = [a.0, b.0];

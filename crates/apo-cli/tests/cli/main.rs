@@ -68,9 +68,9 @@ pub fn path(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")
 }
 
-/// A one-epoch CartPole PPO run of 200 steps in `dir` (`extra` appended).
-pub fn small(dir: &Path, extra: &[&str]) -> String {
-    let mut args = vec![
+/// The arguments of a one-epoch CartPole PPO run of 200 steps in `dir`.
+pub fn small_args(dir: &Path) -> Vec<&str> {
+    vec![
         "train",
         "--algo",
         "ppo",
@@ -83,7 +83,12 @@ pub fn small(dir: &Path, extra: &[&str]) -> String {
         "--quiet",
         "--out",
         path(dir),
-    ];
+    ]
+}
+
+/// A one-epoch CartPole PPO run of 200 steps in `dir` (`extra` appended).
+pub fn small(dir: &Path, extra: &[&str]) -> String {
+    let mut args = small_args(dir);
     args.extend_from_slice(extra);
     ok(&args)
 }
