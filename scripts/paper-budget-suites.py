@@ -20,7 +20,8 @@ cells.csv); with 5 seeds on every suite the ranking does not depend on that choi
 
 Prints the 8 suites ranked with their numbers (the normalized rise, its spread over seeds, the
 raw rise per seed, the mean worst return over the window and its spread, and the TRPO epochs of
-the window with unstable episodes, whose returns the committed runs left out) and the two picked.
+the window with unstable episodes, which the statistics count with the return they had reached)
+and the two picked.
 Exits non-zero when the runs are not what the rule expects (8 suites, 5 TRPO seeds each, 1 M
 steps, epochs 81-100 present with a worst return).
 """
@@ -125,8 +126,8 @@ def main():
         mark = "  <- picked" if i <= PICK else ""
         print(f"{i:>4}  {t['suite']:<13} {t['score']:+10.3f} {t['score_sd']:6.3f}  {t['worst']:+10.3f} {spread}  "
               f"{rises:<44} {t['unstable']:>7}{mark}")
-    print("\nunst.ep: TRPO epochs of the window (over all seeds) with unstable episodes, "
-          "whose returns these progress.csv files leave out")
+    print("\nunst.ep: TRPO epochs of the window (over all seeds) with unstable episodes "
+          "(counted in every statistic with the return they had reached)")
     if any(t["scale_is_mean"] for t in table):
         print("*: zero spread, normalized by the absolute mean instead")
     picked = [t["suite"] for t in table[:PICK]]
