@@ -48,7 +48,7 @@ RETURN_COLS = [
     "episodes", "ep_ret_mean", "ep_ret_min", "ep_ret_max", "ep_ret_std", "ep_ret_cvar10",
     "ep_ret_q10", "ep_len_mean", "success_rate", "bound", "confidence",
 ]
-TIME_COLS = ["steps_per_s", "time_s", "rollout_s", "update_pi_s", "update_v_s", "eval_s"]
+TIME_COLS = ["steps_per_s", "time_s", "rollout_s", "update_pi_s", "update_v_s", "eval_s", "sim_s"]
 PROGRESS, EPISODES, CONFIG, MARKER, LOCK = (
     "progress.csv", "episodes.csv", "config.toml", ".apo-run", "apo.lock")
 

@@ -289,15 +289,21 @@ pub fn policy_call_us(obs_dim: usize, action: ActionKind, batch: usize, calls: u
     start.elapsed().as_secs_f64() * 1e6 / calls as f64
 }
 
-/// Where an epoch's time went, seconds (from the epoch's `progress.csv` row).
+/// Where an epoch's time went, seconds (from the epoch's `progress.csv` row). Each rollout is
+/// charged to the epoch whose data it collects, also when, pipelined, it ran during the
+/// previous epoch's value fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EpochSplit {
     /// Epoch number, from 1.
     pub epoch: usize,
-    /// The whole epoch (from the end of the previous one; epoch 1 includes the set-up).
+    /// The epoch's share of the run's wall time (from the end of the previous one; epoch 1
+    /// includes the set-up; pipelined, it includes the next epoch's rollout and not its own,
+    /// except epoch 1's).
     pub total_s: f64,
     /// The rollout.
     pub rollout_s: f64,
+    /// The rollout's time inside the simulator's calls.
+    pub sim_s: f64,
     /// The policy update.
     pub policy_s: f64,
     /// The value update.
@@ -308,8 +314,59 @@ pub struct EpochSplit {
     /// Everything else: host-copy synchronization, progress and checkpoint writes
     /// (`max(0, total − rollout − policy − value)`).
     pub other_s: f64,
-    /// Environment steps per second over the epoch (`steps / total_s`).
-    pub steps_per_s: f64,
+}
+
+/// What [`epoch`] measured: each epoch's split and the whole run's throughput.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpochBench {
+    /// Each epoch's split, in order.
+    pub epochs: Vec<EpochSplit>,
+    /// Environment steps of the whole run.
+    pub steps: u64,
+    /// Wall time of the whole run, from creating it to the end of its last epoch, seconds.
+    pub wall_s: f64,
+    /// Whether the value fit ran beside the next rollout.
+    pub pipeline: bool,
+}
+
+impl EpochBench {
+    /// End to end: the run's steps over its wall time, what a user waits for.
+    pub fn steps_per_s(&self) -> f64 {
+        self.steps as f64 / self.wall_s.max(1e-9)
+    }
+
+    /// The simulator's own speed inside the run: the steps over the rollouts' time inside the
+    /// simulator's calls. [`EpochBench::steps_per_s`] never exceeds it (the rollouts run one
+    /// after another, so the run's wall time holds every one of those calls).
+    pub fn sim_steps_per_s(&self) -> f64 {
+        self.steps as f64 / self.sim_s().max(1e-9)
+    }
+
+    /// The rollouts' time inside the simulator's calls, seconds.
+    pub fn sim_s(&self) -> f64 {
+        self.epochs.iter().map(|e| e.sim_s).sum()
+    }
+
+    /// The simulator's share of the run's wall time, in `[0, 1]`.
+    pub fn sim_share(&self) -> f64 {
+        self.sim_s() / self.wall_s.max(1e-9)
+    }
+
+    /// The epochs in the steady state: without epoch 1 (the set-up, and pipelined, two
+    /// rollouts) and, pipelined, without the last (no rollout ahead). All of them when that
+    /// leaves none.
+    pub fn steady(&self) -> &[EpochSplit] {
+        let n = self.epochs.len();
+        let end = if self.pipeline {
+            n.saturating_sub(1)
+        } else {
+            n
+        };
+        match self.epochs.get(1..end) {
+            Some(steady) if !steady.is_empty() => steady,
+            _ => &self.epochs,
+        }
+    }
 }
 
 /// [`update`] on the backend [`apo_train::BackendKind::dispatch`] picks, on its default device.
@@ -344,12 +401,13 @@ impl apo_train::OnBackend for UpdateBench {
 
 /// Trains `config` for its epochs in a fresh temporary run directory (removed afterwards,
 /// also when `stop` is raised: then the epochs done so far are returned), the environments
-/// stepped on `threads` threads, and returns each epoch's time split.
+/// stepped on `threads` threads, and returns each epoch's time split and the whole run's
+/// steps and wall time.
 pub fn epoch(
     config: &apo_train::RunConfig,
     threads: usize,
     stop: &std::sync::atomic::AtomicBool,
-) -> anyhow::Result<Vec<EpochSplit>> {
+) -> anyhow::Result<EpochBench> {
     struct Train<'a> {
         config: &'a apo_train::RunConfig,
         dir: &'a std::path::Path,
@@ -357,8 +415,10 @@ pub fn epoch(
         stop: &'a std::sync::atomic::AtomicBool,
     }
     impl apo_train::OnBackend for Train<'_> {
-        type Output = anyhow::Result<()>;
-        fn run<B: Backend>(self) -> anyhow::Result<()> {
+        /// The run's wall time, seconds.
+        type Output = anyhow::Result<f64>;
+        fn run<B: Backend>(self) -> anyhow::Result<f64> {
+            let start = Instant::now();
             let launch = apo_train::run::Launch::new(self.threads);
             let mut run = apo_train::run::Run::<B>::create(
                 self.dir,
@@ -368,7 +428,7 @@ pub fn epoch(
                 false,
             )?;
             while run.epoch(self.stop, &mut |_| {})?.is_some() {}
-            Ok(())
+            Ok(start.elapsed().as_secs_f64())
         }
     }
     let nanos = std::time::SystemTime::now()
@@ -385,33 +445,40 @@ pub fn epoch(
         stop,
     });
     let progress = dir.join(apo_train::run_dir::PROGRESS);
-    let rows = trained
-        .and_then(|t| t)
-        .and_then(|()| match progress.exists() {
-            true => apo_train::progress_csv::read(&progress),
+    let trained = trained.and_then(|t| t).and_then(|wall_s| {
+        let rows = match progress.exists() {
+            true => apo_train::progress_csv::read(&progress)?,
             // stopped before the first epoch
-            false => Ok(Vec::new()),
-        });
+            false => Vec::new(),
+        };
+        Ok((wall_s, rows))
+    });
     prepared.discard();
-    let rows = rows?;
-    let mut previous = (0.0, 0u64);
-    Ok(rows
+    let (wall_s, rows) = trained?;
+    let mut previous = 0.0;
+    let epochs = rows
         .iter()
         .map(|r| {
-            let (total_s, steps) = (r.time_s - previous.0, r.env_steps - previous.1);
-            previous = (r.time_s, r.env_steps);
+            let total_s = r.time_s - previous;
+            previous = r.time_s;
             EpochSplit {
                 epoch: r.epoch,
                 total_s,
                 rollout_s: r.rollout_s,
+                sim_s: r.sim_s,
                 policy_s: r.update_pi_s,
                 value_s: r.update_v_s,
                 hidden_s: (r.rollout_s + r.update_pi_s + r.update_v_s - total_s).max(0.0),
                 other_s: (total_s - r.rollout_s - r.update_pi_s - r.update_v_s).max(0.0),
-                steps_per_s: steps as f64 / total_s.max(1e-9),
             }
         })
-        .collect())
+        .collect();
+    Ok(EpochBench {
+        epochs,
+        steps: rows.last().map_or(0, |r| r.env_steps),
+        wall_s,
+        pipeline: config.train.pipeline,
+    })
 }
 
 /// The median of `values` (`NaN` for none).

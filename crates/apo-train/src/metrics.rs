@@ -81,13 +81,14 @@ impl EpisodeRecord {
 }
 
 /// The columns that depend on wall-clock time (everything else is reproducible).
-pub const TIME_COLUMNS: [&str; 6] = [
+pub const TIME_COLUMNS: [&str; 7] = [
     "steps_per_s",
     "time_s",
     "rollout_s",
     "update_pi_s",
     "update_v_s",
     "eval_s",
+    "sim_s",
 ];
 
 /// One epoch's row. Return statistics are empty when no episode ended in the epoch.
@@ -186,7 +187,8 @@ pub struct ProgressRow {
     /// Evaluation episodes ended by a simulator instability (counted in the statistics).
     #[serde(default)]
     pub eval_unstable_episodes: Option<usize>,
-    /// Environment steps per second over the epoch (rollout and update).
+    /// Environment steps per second of the run so far: `env_steps` over `time_s`, what a
+    /// user waits for (rollouts, updates, evaluations and checkpoints all included).
     pub steps_per_s: f64,
     /// Wall time since the run started, seconds.
     pub time_s: f64,
@@ -199,9 +201,14 @@ pub struct ProgressRow {
     /// Wall time of the epoch's value update, seconds.
     #[serde(default)]
     pub update_v_s: f64,
-    /// Wall time of the epoch's evaluation, seconds (not part of `steps_per_s`).
+    /// Wall time of the epoch's evaluation, seconds.
     #[serde(default)]
     pub eval_s: f64,
+    /// Wall time of the epoch's rollout inside the simulator's calls (the environments'
+    /// `reset` and `step`), seconds; `rollout_s − sim_s` is the rollout's own work (policy
+    /// call, sampling, normalization, buffers, the critic's values and the advantages).
+    #[serde(default)]
+    pub sim_s: f64,
 }
 
 /// Wall times of an epoch's phases, seconds.
@@ -209,7 +216,9 @@ pub struct ProgressRow {
 pub struct EpochTimes {
     /// The rollout.
     pub rollout_s: f64,
-    /// Steps per second over the whole epoch.
+    /// The rollout's time inside the simulator's calls.
+    pub sim_s: f64,
+    /// Steps per second of the run so far.
     pub steps_per_s: f64,
     /// Since the run started.
     pub time_s: f64,
@@ -226,6 +235,7 @@ impl ProgressRow {
             update_pi_s: 0.0,
             update_v_s: 0.0,
             eval_s: 0.0,
+            sim_s: 0.0,
             ..self
         }
     }
@@ -305,6 +315,7 @@ impl ProgressRow {
             steps_per_s: times.steps_per_s,
             time_s: times.time_s,
             rollout_s: times.rollout_s,
+            sim_s: times.sim_s,
             update_pi_s: report.policy_update_s,
             update_v_s: report.value_update_s,
             ..Self::default()

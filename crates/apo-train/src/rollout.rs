@@ -28,6 +28,7 @@
 //! such a task counts as a failure ([`Rollout::success_rate`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 use apo_core::inference::ActBuffers;
 use apo_core::{ActionKind, BufferLayout, Comm, RolloutBuffer};
@@ -94,6 +95,10 @@ pub struct Rollout {
     pub episodes: Vec<Episode>,
     /// Environment steps taken.
     pub steps: u64,
+    /// Wall time inside the environments' `reset` and `step` calls, seconds: the simulator's
+    /// share of the rollout (with several environments on several threads, the vector step's
+    /// wall time).
+    pub sim_s: f64,
 }
 
 impl Rollout {
@@ -250,12 +255,15 @@ impl Collector {
         let obs_dim = self.envs.obs_dim();
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 1));
         let reset_seed = derive_seed(seed, 0, 0);
+        let sim = Instant::now();
         self.envs.reset(Some(reset_seed), &mut self.obs);
+        let mut sim_s = sim.elapsed().as_secs_f64();
         let (mut ep_ret, mut ep_len, mut nth) = (vec![0.0f64; n], vec![0usize; n], vec![0; n]);
         let mut rollout = Rollout {
             batch: Default::default(),
             episodes: vec![],
             steps: 0,
+            sim_s: 0.0,
         };
         let mut row = vec![0.0f32; obs_dim];
         self.merge = (self.comm.is_distributed())
@@ -284,8 +292,10 @@ impl Collector {
             actor.act(&obs_norm, n, false, &mut rng, &mut self.act);
             self.env_actions.clear();
             self.env_actions.extend_from_slice(&self.act.env_actions);
+            let sim = Instant::now();
             self.envs
                 .step(&self.env_actions, &mut self.obs, &mut self.out);
+            sim_s += sim.elapsed().as_secs_f64();
             rollout.steps += n as u64;
             let (aw, dw) = (self.act.actions.len() / n, self.act.dist.len() / n);
             for i in 0..n {
@@ -341,6 +351,7 @@ impl Collector {
                 self.buffers[i].end_path(Some(&row));
             }
         }
+        rollout.sim_s = sim_s;
         Some(rollout)
     }
 

@@ -180,6 +180,7 @@ pub fn row_scalars(row: &ProgressRow) -> Vec<(&'static str, f64)> {
         ("progress/time_s", row.time_s),
         ("speed/steps_per_s", row.steps_per_s),
         ("time/rollout_s", row.rollout_s),
+        ("time/sim_s", row.sim_s),
         ("time/update_pi_s", row.update_pi_s),
         ("time/update_v_s", row.update_v_s),
         ("time/eval_s", row.eval_s),

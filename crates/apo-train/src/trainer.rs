@@ -436,9 +436,7 @@ where
             self.check_finite(&update, &rollout)?;
             self.actor = A::from_learner(&self.learner, &self.value);
         }
-        Ok(Some(
-            self.close_epoch(rollout, seconds, update, normalizer, start),
-        ))
+        Ok(Some(self.close_epoch(rollout, seconds, update, normalizer)))
     }
 
     /// The epoch's rollout: the one collected beside the last epoch's value fit, or a new one
@@ -538,7 +536,6 @@ where
         rollout_s: f64,
         update: UpdateReport,
         normalizer: Option<RunningMeanStd>,
-        start: Instant,
     ) -> EpochReport {
         let state = &mut self.state;
         state.epoch += 1;
@@ -546,10 +543,10 @@ where
         state.elapsed_s = self.started.1 + self.started.0.elapsed().as_secs_f64();
         state.normalizer = normalizer;
         let stats = episode_stats(&rollout.episodes, self.config.algo.probability_factor());
-        // with the pipeline, this call's time is the policy step, the value fit and the next
-        // rollout's steps together: the epoch's share of the run's wall time
-        let wall_s = start.elapsed().as_secs_f64();
-        let steps_per_s = rollout.steps as f64 / wall_s.max(1e-9);
+        // the run's steps over its wall time: with the pipeline, an epoch's call also collects
+        // the next epoch's rollout, so a ratio per call would charge that rollout to the wrong
+        // epoch (and make the last epoch, with none ahead, look fast)
+        let steps_per_s = state.env_steps as f64 / state.elapsed_s.max(1e-9);
         let mut row = ProgressRow::new(
             state.epoch,
             state.env_steps,
@@ -559,6 +556,7 @@ where
             &update,
             EpochTimes {
                 rollout_s,
+                sim_s: rollout.sim_s,
                 steps_per_s,
                 time_s: state.elapsed_s,
             },

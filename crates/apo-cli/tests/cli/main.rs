@@ -19,6 +19,7 @@ mod reporting;
 mod stops;
 mod sweep_report;
 mod theory;
+mod timing;
 
 pub fn apo(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_apo"))

@@ -54,6 +54,7 @@ pub fn row(epoch: usize, env_steps: u64, mean: f64, min: f64, max: f64) -> Progr
         update_pi_s: 0.25,
         update_v_s: 0.25,
         eval_s: 0.0,
+        sim_s: 0.4,
     }
 }
 

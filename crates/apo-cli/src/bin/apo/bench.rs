@@ -45,7 +45,8 @@ pub enum BenchCommand {
         /// Environment steps per epoch.
         #[arg(long, default_value_t = 4000)]
         steps_per_epoch: usize,
-        /// Epochs (the first includes the set-up and is left out of the medians); 2..=1000.
+        /// Epochs (the first, with the set-up, and, pipelined, the last, with no rollout ahead,
+        /// are left out of the medians); 2..=1000.
         #[arg(long, default_value_t = 5, value_parser = apo_cli::flags::count::<u64>(2, 1000))]
         epochs: u64,
         /// Environments stepped together.
@@ -63,6 +64,9 @@ pub enum BenchCommand {
         /// The sequential epoch: no overlap of the value fit with the next rollout.
         #[arg(long)]
         no_pipeline: bool,
+        /// Physics of MuJoCo environments: mujoco2, or mujoco3 (builds with the `mujoco3` feature).
+        #[arg(long, value_parser = crate::parse_physics, default_value = "mujoco2")]
+        physics: Physics,
     },
     /// Environment steps per second of one environment with random actions.
     Env {
@@ -150,6 +154,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             kernels,
             threads,
             no_pipeline,
+            physics,
         } => {
             let spec = apo_envs::registry::spec(&env)?;
             let mut config = RunConfig {
@@ -161,54 +166,68 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             config.train.epochs = epochs as usize;
             config.train.num_envs = num_envs;
             config.train.pipeline = !no_pipeline;
+            config.train.physics = physics;
             config.validate()?;
             config.check_memory(
                 spec.observation_dim,
                 apo_train::action_kind(&spec.action_space),
             )?;
             let signals = crate::signals::Signals::install()?;
-            let split = apo_cli::bench::epoch(&config, threads, &signals.stop)?;
+            let bench = apo_cli::bench::epoch(&config, threads, &signals.stop)?;
             if signals.stop.load(std::sync::atomic::Ordering::SeqCst) {
                 let signal = signals.which.load(std::sync::atomic::Ordering::SeqCst);
                 anyhow::bail!(
                     "interrupted by {} after {} epoch(s); the temporary run is removed",
                     crate::signals::signal_name(signal),
-                    split.len()
+                    bench.epochs.len()
                 );
             }
-            apo_cli::outln!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend} pipeline={}", !no_pipeline)?;
+            apo_cli::outln!("algo={algo} env={env} steps_per_epoch={steps_per_epoch} num_envs={num_envs} backend={backend} pipeline={} physics={physics}", !no_pipeline)?;
             apo_cli::outln!(
-                "epoch  total_s  rollout_s  policy_s  value_s  hidden_s  other_s  steps_per_s"
+                "epoch  total_s  rollout_s    sim_s  policy_s  value_s  hidden_s  other_s"
             )?;
-            for e in &split {
+            for e in &bench.epochs {
                 apo_cli::outln!(
-                    "{:>5}  {:>7.3}  {:>9.3}  {:>8.3}  {:>7.3}  {:>8.3}  {:>7.3}  {:>11.0}",
+                    "{:>5}  {:>7.3}  {:>9.3}  {:>7.3}  {:>8.3}  {:>7.3}  {:>8.3}  {:>7.3}",
                     e.epoch,
                     e.total_s,
                     e.rollout_s,
+                    e.sim_s,
                     e.policy_s,
                     e.value_s,
                     e.hidden_s,
                     e.other_s,
-                    e.steps_per_s
                 )?;
             }
-            let later = split.get(1..).unwrap_or_default();
+            let steady = bench.steady();
             let med = |f: fn(&apo_cli::bench::EpochSplit) -> f64| {
-                apo_cli::bench::median_of(later.iter().map(f))
+                apo_cli::bench::median_of(steady.iter().map(f))
             };
             apo_cli::outln!(
-                "median_epochs_2_on: total_s={:.3} rollout_s={:.3} policy_s={:.3} value_s={:.3} hidden_s={:.3} other_s={:.3} steps_per_s={:.0} overlap={:.2}",
+                "median_steady_epochs ({}): total_s={:.3} rollout_s={:.3} sim_s={:.3} policy_s={:.3} value_s={:.3} hidden_s={:.3} other_s={:.3} overlap={:.2} outside_sim={:.3}",
+                match (steady.first(), steady.last()) {
+                    (Some(a), Some(b)) => format!("epochs {}-{}", a.epoch, b.epoch),
+                    _ => "none".into(),
+                },
                 med(|e| e.total_s),
                 med(|e| e.rollout_s),
+                med(|e| e.sim_s),
                 med(|e| e.policy_s),
                 med(|e| e.value_s),
                 med(|e| e.hidden_s),
                 med(|e| e.other_s),
-                med(|e| e.steps_per_s),
                 med(|e| (e.hidden_s / e.value_s.max(1e-12)).min(1.0)),
+                med(|e| (e.rollout_s - e.sim_s) / e.sim_s.max(1e-12)),
             )?;
-            apo_cli::outln!("(hidden_s: the time the epoch's parts overlapped, rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout)")?;
+            apo_cli::outln!(
+                "end_to_end: steps={} wall_s={:.3} steps_per_s={:.0} sim_steps_per_s={:.0} sim_share={:.3}",
+                bench.steps,
+                bench.wall_s,
+                bench.steps_per_s(),
+                bench.sim_steps_per_s(),
+                bench.sim_share(),
+            )?;
+            apo_cli::outln!("(each rollout is charged to the epoch whose data it collects; sim_s: its time inside the simulator's reset and step calls; outside_sim: (rollout_s − sim_s) / sim_s, the rollout's own work against the simulator's; hidden_s: rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout; end_to_end: the whole run, set-up included: steps_per_s = steps / wall_s, what a user waits for, never above sim_steps_per_s = steps / Σ sim_s, the simulator's own speed in this run; sim_share = Σ sim_s / wall_s)")?;
         }
         BenchCommand::Env {
             env,
