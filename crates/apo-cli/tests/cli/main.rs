@@ -14,6 +14,7 @@ mod physics;
 mod plot;
 mod ranges;
 mod reading;
+mod reference;
 mod render;
 mod reporting;
 mod stops;

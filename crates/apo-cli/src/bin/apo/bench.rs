@@ -13,6 +13,7 @@ pub enum BenchCommand {
     /// update, a KL Hessian-vector product (double backward), a Fisher-vector product and a
     /// value-fit Adam step (the last two on Burn's graph and on the host kernels), and the
     /// Fisher-vector product of a policy without a JVP (by finite differences).
+    #[command(after_help = "Example:\n  apo bench update --batch 4000 --obs 11 --act 3")]
     Update {
         /// Backend.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
@@ -33,8 +34,12 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 3, value_parser = apo_cli::flags::count::<u64>(1, 1000))]
         repeats: u64,
     },
-    /// Train a few epochs and print where each epoch's time goes (rollout, policy update,
-    /// value update, other) and the end-to-end steps/s (medians over epochs 2.. on the last line).
+    /// Train a few epochs and print where each epoch's time goes (rollout and the simulator's
+    /// share of it, policy update, value update, other), the medians over the steady epochs, and
+    /// the whole run's end-to-end steps/s and simulator share (last line).
+    #[command(
+        after_help = "Example:\n  apo bench epoch --algo ppo --env Goal_Point --steps-per-epoch 10000 --threads 2"
+    )]
     Epoch {
         /// Algorithm.
         #[arg(long, value_parser = crate::parse_algo, default_value = "apo")]
@@ -69,6 +74,9 @@ pub enum BenchCommand {
         physics: Physics,
     },
     /// Environment steps per second of one environment with random actions.
+    #[command(
+        after_help = "Example:\n  apo bench env --env Hopper --steps 100000 --physics mujoco3"
+    )]
     Env {
         /// Environment name.
         #[arg(long)]
@@ -87,6 +95,7 @@ pub enum BenchCommand {
         physics: Physics,
     },
     /// Microseconds per rollout policy call (host MLP, (64, 64)).
+    #[command(after_help = "Example:\n  apo bench policy --obs 30 --act 2")]
     Policy {
         /// Observation dimension; 1..=100000.
         #[arg(long, default_value_t = 11, value_parser = apo_cli::flags::count::<u64>(1, 100_000))]

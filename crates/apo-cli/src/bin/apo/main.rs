@@ -23,8 +23,12 @@ mod summary;
 mod sweep;
 mod train;
 
-const CONFIG_HELP: &str = "Defaults are the paper's (configs/<algo>.toml spells them out). Every config key with its \
-meaning, default and range: `apo config --algo <ALGO>`; set any key with --set key=value or a --config file.";
+const TRAIN_HELP: &str = "Defaults are the paper's (configs/<algo>.toml spells them out). Every config key with its \
+meaning, default and range: `apo config --algo <ALGO>`; set any key with --set key=value or a --config file.
+
+Example:
+  apo train --algo apo --env Hopper --epochs 100 --out runs/hopper-apo
+  apo train --config configs/guard/papo.toml --env Goal_Point --preset robust --out runs/gp";
 
 #[derive(Parser)]
 #[command(
@@ -40,25 +44,40 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Train a policy (Ctrl-C or SIGTERM: checkpoint and stop; a second one: stop at once).
-    #[command(after_help = CONFIG_HELP)]
+    #[command(after_help = TRAIN_HELP)]
     Train(train::TrainArgs),
     /// Evaluate a run's policy: prints the mean, std, min and max return.
+    #[command(
+        after_help = "Example:\n  apo eval --run runs/hopper-apo --episodes 20 --deterministic"
+    )]
     Eval(eval::EvalArgs),
     /// Record a video of a run's policy (GIF, or MP4 with ffmpeg): the episodes `apo eval`
     /// plays with the same seed, with step, reward and return written on each frame. MuJoCo
     /// tasks render headless through EGL or OSMesa (`APO_GL=egl|osmesa`).
+    #[command(
+        after_help = "Example:\n  apo render --run runs/hopper-apo --episodes 1 --out hopper.gif"
+    )]
     Render(render::RenderArgs),
     /// Print the effective config with every key's meaning and range (TOML; usable as --config).
+    #[command(
+        after_help = "Example:\n  apo config --algo papo --env Goal_Point --preset robust > papo.toml"
+    )]
     Config(config::ConfigArgs),
     /// List environments and algorithms.
+    #[command(after_help = "Example:\n  apo list")]
     List,
     /// Plot learning curves of runs (mean return, min–max band, worst return).
+    #[command(
+        after_help = "Example:\n  apo plot runs/hopper-apo runs/hopper-trpo --smooth 5 --out hopper.png"
+    )]
     Plot(plot::PlotArgs),
     /// The APO paper's Theorem 1 checked exactly on random tabular MDPs: (a) the surrogate
     /// M_k^j(π) ≤ B_k(π) = J − k·V, (b) equality at π_j, (c) B_k along exact APO iterations and
     /// along the practical trust-region surrogate, (d) Selberg's confidence (docs/theory.md).
+    #[command(after_help = "Example:\n  apo theory")]
     Theory(apo_cli::theory::TheoryArgs),
     /// The paper's metrics of runs: average mean and worst return over all and the last N epochs.
+    #[command(after_help = "Example:\n  apo summary runs/hopper-apo runs/hopper-trpo --last 20")]
     Summary(summary::SummaryArgs),
     /// The paper's metrics per environment and algorithm, mean ± std over seeds: average mean
     /// and worst return over all and the last N epochs, the bound and its confidence, the
@@ -68,19 +87,50 @@ enum Command {
     /// probability of improvement of each pair, performance profiles. Markdown on stdout, and
     /// with --out also report.md, report.csv, statistics.json, learning curves (mean ± std over
     /// seeds), and profile-<metric> and intervals-<metric> figures (PNG and SVG).
+    #[command(
+        after_help = "Example:\n  apo report runs/campaign --last 20 --out reports/campaign"
+    )]
     Report(report::ReportArgs),
     /// Statistics of a score file (`algorithm,task,score` per run) as rliable computes them:
     /// mean, median, interquartile mean and optimality gap with stratified-bootstrap 95 %
     /// intervals, the probability of improvement of each pair, performance profiles.
+    #[command(after_help = "Example:\n  apo stats scores.csv --reps 2000")]
     Stats(stats::StatsArgs),
     /// Run a grid of config values × seeds × algorithms × environments, each a separate run
     /// under one directory, several at once; run it again to resume (finished runs are
     /// skipped, interrupted ones resumed). Ends with each cell's metric over its seeds.
     /// SIGINT/SIGTERM are passed on to the running runs, which checkpoint; the sweep waits for them.
+    #[command(
+        after_help = "Example:\n  apo sweep --algo apo,trpo --env Hopper --seeds 0,1,2,3,4 --grid algo.omega1=0.001,0.01 --jobs 2 --out runs/sweep"
+    )]
     Sweep(sweep::SweepArgs),
     /// Benchmarks.
-    #[command(subcommand)]
+    #[command(
+        subcommand,
+        after_help = "Example:\n  apo bench epoch --env Hopper --algo apo"
+    )]
     Bench(bench::BenchCommand),
+    /// Print a shell completion script: bash, zsh, fish, elvish or powershell.
+    #[command(
+        after_help = "Example:\n  apo completions bash > ~/.local/share/bash-completion/completions/apo\n  apo completions zsh > \"${fpath[1]}/_apo\""
+    )]
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print this command-line reference as Markdown (docs/cli.md is its output).
+    #[command(hide = true)]
+    MarkdownHelp,
+}
+
+/// `apo completions SHELL`: the completion script on stdout.
+fn completions(shell: clap_complete::Shell) -> anyhow::Result<()> {
+    use clap::CommandFactory;
+    let mut script = Vec::new();
+    clap_complete::generate(shell, &mut Cli::command(), "apo", &mut script);
+    apo_cli::out!("{}", String::from_utf8_lossy(&script))?;
+    Ok(())
 }
 
 /// The registered algorithms' names, comma-separated.
@@ -168,6 +218,10 @@ fn main() -> ExitCode {
         Command::Report(args) => done(report::run(&args)),
         Command::Summary(args) => done(summary::run(&args)),
         Command::Stats(args) => done(stats::run(&args)),
+        Command::Completions { shell } => done(completions(shell)),
+        Command::MarkdownHelp => {
+            done(apo_cli::out!("{}", clap_markdown::help_markdown::<Cli>()).map_err(Into::into))
+        }
     };
     result.unwrap_or_else(|e| {
         if apo_cli::terminal::is_closed_pipe(&e) {

@@ -1,0 +1,95 @@
+//! The command-line reference cannot go stale: `docs/cli.md` is `apo markdown-help`'s output,
+//! every subcommand's `--help` shows an example, and the completion scripts are generated from
+//! the same definitions.
+
+use super::ok;
+
+/// The subcommands listed under `Commands:` in `apo [path…] --help` (without `help`).
+fn subcommands(path: &[&str]) -> Vec<String> {
+    let mut args = path.to_vec();
+    args.push("--help");
+    let help = ok(&args);
+    help.lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|name| *name != "help")
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn docs_cli_md_is_the_generated_reference() {
+    let generated = ok(&["markdown-help"]);
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/cli.md");
+    let committed = std::fs::read_to_string(file).expect("docs/cli.md");
+    assert!(
+        generated == committed,
+        "docs/cli.md is not the reference of this build's command line: regenerate it with \
+         `cargo run -p apo-cli -- markdown-help > docs/cli.md`"
+    );
+    // every subcommand is in it
+    for command in subcommands(&[]) {
+        assert!(
+            committed.contains(&format!("## `apo {command}`")),
+            "docs/cli.md has no section for `apo {command}`"
+        );
+    }
+}
+
+#[test]
+fn every_subcommand_help_shows_an_example() {
+    let top = subcommands(&[]);
+    assert!(top.len() >= 12, "{top:?}");
+    let bench = subcommands(&["bench"]);
+    assert!(bench.len() >= 4, "{bench:?}");
+    let paths = top
+        .iter()
+        .map(|c| vec![c.as_str()])
+        .chain(bench.iter().map(|c| vec!["bench", c.as_str()]));
+    for path in paths {
+        let mut args = path.clone();
+        args.push("--help");
+        let help = ok(&args);
+        let example = help
+            .split("Example:")
+            .nth(1)
+            .unwrap_or_else(|| panic!("`apo {} --help` has no example:\n{help}", path.join(" ")));
+        assert!(
+            example
+                .trim_start()
+                .starts_with(&format!("apo {}", path[0])),
+            "`apo {} --help`'s example does not run it:\n{help}",
+            path.join(" ")
+        );
+    }
+}
+
+#[test]
+fn completion_scripts_know_every_subcommand() {
+    let top = subcommands(&[]);
+    for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {
+        let script = ok(&["completions", shell]);
+        for command in &top {
+            assert!(script.contains(command.as_str()), "{shell}: no `{command}`");
+        }
+    }
+    // the bash script is valid bash
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join("apo.bash");
+    std::fs::write(&file, ok(&["completions", "bash"])).expect("write");
+    let check = std::process::Command::new("bash")
+        .arg("-n")
+        .arg(&file)
+        .output()
+        .expect("bash runs");
+    assert!(
+        check.status.success(),
+        "{}",
+        String::from_utf8_lossy(&check.stderr)
+    );
+    // an unknown shell is refused with the choices
+    let err = super::fails(&["completions", "tcsh"]);
+    assert!(err.contains("bash") && err.contains("zsh"), "{err}");
+}
