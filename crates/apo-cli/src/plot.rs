@@ -325,9 +325,10 @@ fn distinct<'a>(items: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
 /// millionth of their size, e.g. CartPole solved at 500) get ±5 % of their value, at least ±1,
 /// so that the ticks stay readable.
 ///
-/// An axis wider than the largest `f64` is an error naming the runs with the extremes
+/// The values of `column` when one is plotted, else the returns. An axis wider than the
+/// largest `f64` is an error naming the runs with the extremes
 /// (plotters' tick placement loops forever on an infinite range).
-fn return_axis(runs: &[Run]) -> anyhow::Result<Range<f64>> {
+fn return_axis(runs: &[Run], column: Option<&str>) -> anyhow::Result<Range<f64>> {
     let extreme = |better: fn(f64, f64) -> bool| {
         runs.iter()
             .flat_map(|run| run.returns().map(move |y| (y, run)))
@@ -335,7 +336,14 @@ fn return_axis(runs: &[Run]) -> anyhow::Result<Range<f64>> {
     };
     let (Some((lo, lo_run)), Some((hi, hi_run))) = (extreme(|a, b| a < b), extreme(|a, b| a > b))
     else {
-        bail!("the runs have no completed episode with a finite return to plot yet");
+        match column {
+            Some(name) => bail!(
+                "progress.csv's column `{name}` has no finite number to plot in these runs: it is empty in \
+                 every epoch (e.g. `line_search` of an algorithm without a line search, `success_rate` of a \
+                 task that judges no success)"
+            ),
+            None => bail!("the runs have no completed episode with a finite return to plot yet"),
+        }
     };
     let span = hi - lo;
     let (start, end) = if span <= 1e-6 * lo.abs().max(hi.abs()).max(1.0) {
@@ -475,7 +483,7 @@ impl<'a> Figure<'a> {
             title: format!("{} — {}", envs.join(", "), algos.join(", ")),
             subtitle,
             x: 0.0..runs.iter().map(|r| r.steps).fold(1.0, f64::max),
-            y: return_axis(runs)?,
+            y: return_axis(runs, options.column.as_deref())?,
         })
     }
 

@@ -143,7 +143,14 @@ pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
                 a.trim().parse().with_context(bad)?,
                 b.trim().parse().with_context(bad)?,
             );
-            let count = b.saturating_sub(a);
+            if b <= a {
+                bail!(
+                    "--seeds {text} is an empty range: its end is excluded, so it must be above its start \
+                     (e.g. {a}..{} for the seed {a} alone)",
+                    a.saturating_add(1)
+                );
+            }
+            let count = b - a;
             if count > max {
                 bail!(
                     "--seeds {text} is {count} seeds, more than the {max} runs a sweep may have \
@@ -158,8 +165,14 @@ pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
             .collect::<Result<_, _>>()
             .with_context(bad)?,
     };
-    if seeds.is_empty() || seeds.iter().any(|&s| s > i64::MAX as u64) {
+    if seeds.is_empty() {
         bail!("{}", bad());
+    }
+    if let Some(s) = seeds.iter().find(|&&s| s > i64::MAX as u64) {
+        bail!(
+            "--seeds {text}: seed {s} is out of the range 0..={}",
+            i64::MAX
+        );
     }
     let mut seen = BTreeSet::new();
     if let Some(s) = seeds.iter().find(|s| !seen.insert(**s)) {

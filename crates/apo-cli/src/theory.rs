@@ -26,7 +26,8 @@ pub struct TheoryArgs {
     /// Probability factors k (comma-separated, each in [0, 1000]).
     #[arg(long, value_delimiter = ',', default_values_t = [0.1, 1.0, 7.0])]
     pub k: Vec<f64>,
-    /// Scale of π_j's random logits, in [0, 100].
+    /// Scale of π_j's random logits, in [0, 4] (beyond, the policies' smallest probabilities
+    /// make some of the surrogate's terms overflow and check (a) cannot be made).
     #[arg(long, default_value_t = 1.0)]
     pub temperature: f64,
     /// Candidates per distance from π_j (distances 1e-3 … 3 in logit space); 1..=1000.
@@ -98,7 +99,11 @@ impl TheoryArgs {
         for &k in &self.k {
             within("--k", k, 0.0, 1000.0, false)?;
         }
-        within("--temperature", self.temperature, 0.0, 100.0, false)?;
+        within("--temperature", self.temperature, 0.0, 4.0, false)?;
+        // a run that checks nothing is not a pass
+        if self.practical_only && self.practical_seeds == 0 {
+            bail!("--practical-only runs check (e) only, and --practical-seeds 0 gives it no MDP: nothing would be checked (give --practical-seeds 1 or more)");
+        }
         within("--reward-offset", self.reward_offset, -1e6, 1e6, false)?;
         within("--reward-scale", self.reward_scale, 0.0, 1e6, true)?;
         within("--max-kl", self.max_kl, 0.0, 1.0, true)?;
@@ -198,6 +203,22 @@ fn practical_check(args: &TheoryArgs, problems: &Problems) -> anyhow::Result<()>
                 },
             )
             .with_context(|| format!("check (e), {name}, k {k}"))?;
+            let summary = [
+                s.median_kl,
+                s.largest_drop,
+                s.mean_bound_gain,
+                s.mean_j_gain,
+                s.mean_variance_change,
+            ];
+            if summary.iter().any(|v| v.is_nan() || v.is_infinite()) {
+                bail!(
+                    "check (e), {name}, k {k}: a step's KL, bound, return or variance is not finite \
+                     (--reward-offset {}, --reward-scale {}, --temperature {}); lower them",
+                    args.reward_offset,
+                    args.reward_scale,
+                    args.temperature
+                );
+            }
             let pct = |n: usize| 100.0 * n as f64 / s.updates.max(1) as f64;
             crate::outln!(
                 "    | {k} | {name} | {:.0} % | {:.0} % | {:.1e} | {} | {} ({:.1e}) | {:+.4} | {:+.4} | {:+.4} | {} |",
@@ -223,6 +244,16 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
 
     let lb = check_lower_bound(&problems, 0..args.seeds, &args.k, args.draws as usize, norm)
         .context("check (a)")?;
+    // a check whose quantities are not finite was not made: an error, never a pass
+    if lb.not_finite > 0 {
+        bail!(
+            "check (a): {} of {} candidates have a surrogate or bound that is not finite (at --temperature {} \
+             the policies' probabilities underflow to 0 and a KL divergence is infinite); lower --temperature",
+            lb.not_finite,
+            lb.cases,
+            args.temperature
+        );
+    }
     crate::outln!(
         "(a) M_k^j(π) ≤ B_k(π): {} candidates on {} MDPs, {} violations",
         lb.cases,
@@ -267,6 +298,12 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
                     args.ascent_steps as usize,
                 )
                 .with_context(|| format!("check (c), seed {seed}"))?;
+                if let Some(b) = bounds.iter().find(|b| !b.is_finite()) {
+                    bail!(
+                        "check (c), {name}, seed {seed}, k {k}: the bound B_k is {b} (not finite); lower --temperature \
+                         or --k"
+                    );
+                }
                 let (n, drop) = drops(&bounds, 1e-9);
                 steps += bounds.len() - 1;
                 decreased += n;
@@ -291,6 +328,16 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
         horizon,
     )
     .context("check (d)")?;
+    if let Some(c) = cases
+        .iter()
+        .find(|c| !(c.empirical.is_finite() && c.confidence.is_finite()))
+    {
+        bail!(
+            "check (d): a case's probability ({}) or Selberg's bound ({}) is not finite; lower --temperature or --k",
+            c.empirical,
+            c.confidence
+        );
+    }
     let below = cases
         .iter()
         .filter(|c| c.empirical + 3.0 * c.stderr.max(1.0 / args.episodes as f64) < c.confidence)

@@ -83,6 +83,9 @@ pub struct LowerBoundReport {
     pub cases: usize,
     /// Candidates with `M_k^j(π) > B_k(π)` beyond the tolerance.
     pub violations: usize,
+    /// Candidates whose `M_k^j(π)` or `B_k(π)` is not finite (probabilities that underflow to
+    /// 0 make a KL or a log infinite): neither a pass nor a violation, a check not made.
+    pub not_finite: usize,
     /// The largest `M − B` met among the candidates.
     pub worst: Option<Counterexample>,
     /// The largest `|M_k^j(π_j) − B_k(π_j)|` met.
@@ -105,6 +108,7 @@ pub fn check_lower_bound(
     let mut report = LowerBoundReport {
         cases: 0,
         violations: 0,
+        not_finite: 0,
         worst: None,
         max_gap_at_pi_j: 0.0,
     };
@@ -125,6 +129,10 @@ pub fn check_lower_bound(
                     let terms = Surrogate::new(&mdp, &pi, &pi_j, &ev_j, k, reading)?;
                     report.cases += 1;
                     let tolerance = 1e-9 * (1.0 + terms.b.abs());
+                    if !(terms.m.is_finite() && terms.b.is_finite()) {
+                        report.not_finite += 1;
+                        continue;
+                    }
                     if terms.m - terms.b > tolerance {
                         report.violations += 1;
                     }

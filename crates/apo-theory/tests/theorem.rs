@@ -131,6 +131,27 @@ fn the_corrected_reading_is_a_lower_bound_on_random_problems() {
             report.worst
         );
         assert!(report.max_gap_at_pi_j < 1e-9);
+        assert_eq!(report.not_finite, 0);
+    }
+}
+
+/// A candidate whose surrogate or bound is not finite is counted apart, neither a pass nor a
+/// violation, and never the worst case: `apo theory` refuses to report a check it could not
+/// make (its `--temperature` range keeps the default problems finite).
+#[test]
+fn candidates_that_cannot_be_evaluated_are_counted_apart() {
+    let problems = Problems {
+        states: 3,
+        actions: 2,
+        gamma: 0.9,
+        temperature: 100.0,
+    };
+    let report =
+        check_lower_bound(&problems, 0..3, &[0.1, 1.0, 7.0], 2, CORRECTED).expect("solves");
+    assert!(report.not_finite > 0, "{report:?}");
+    assert!(report.not_finite <= report.cases);
+    if let Some(w) = &report.worst {
+        assert!(w.gap().is_finite(), "{w:?}");
     }
 }
 

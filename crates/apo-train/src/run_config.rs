@@ -786,6 +786,30 @@ fn merge(base: &mut toml::Table, layer: toml::Table, prefix: &str) -> Result<(),
         };
         match (base.get_mut(&k), v) {
             (Some(toml::Value::Table(b)), toml::Value::Table(t)) => merge(b, t, &key)?,
+            // a section and a value do not stand for each other, whichever flag or file later
+            // sets the key
+            (Some(toml::Value::Table(b)), v) => {
+                let keys: Vec<&str> = b.keys().map(String::as_str).take(4).collect();
+                return Err(ConfigFileError::Type {
+                    message: format!(
+                        "is a section (keys {}{}), not a value: set its keys, e.g. `{key}.{}=…`, found {}",
+                        keys.join(", "),
+                        if b.len() > keys.len() { ", …" } else { "" },
+                        keys.first().unwrap_or(&"key"),
+                        v.type_str()
+                    ),
+                    key,
+                });
+            }
+            (Some(slot), toml::Value::Table(_)) => {
+                return Err(ConfigFileError::Type {
+                    message: format!(
+                        "expected a {} (e.g. `{key} = {slot}`), found a table: `{key}` has no keys of its own",
+                        slot.type_str()
+                    ),
+                    key,
+                });
+            }
             (Some(slot), v) => *slot = v,
             (None, v) if is_optional(&key) => {
                 base.insert(k, v);

@@ -502,14 +502,24 @@ impl NewRunDir {
                 entries.first().map_or("", String::as_str)
             );
         };
+        // what the new run writes must be apo's to replace: --force keeps what is not (a link,
+        // a folder of the user's), so the new run would write over it
         let foreign: Vec<&str> = FIXED
             .into_iter()
-            .filter(|n| !listed.contains(*n) && std::fs::symlink_metadata(dir.join(n)).is_ok())
+            .filter(|n| match std::fs::symlink_metadata(dir.join(n)) {
+                Err(_) => false,
+                // apo makes no links: every link is the user's
+                Ok(meta) if meta.file_type().is_symlink() => true,
+                // a folder where apo writes a file
+                Ok(meta) if meta.is_dir() && *n != CHECKPOINTS => true,
+                Ok(_) => !listed.contains(*n),
+            })
             .collect();
         if !foreign.is_empty() {
             bail!(
-                "--force: {} holds {} that apo did not create (not listed in {MARKER}); the new run would overwrite it. \
-                 Nothing was touched: move it away or choose another --out",
+                "--force: {} holds {} that apo did not create (not listed in {MARKER}, a symbolic link, or a folder \
+                 where apo writes a file); the new run would overwrite it. Nothing was touched: move it away or \
+                 choose another --out",
                 dir.display(),
                 foreign.join(", ")
             );

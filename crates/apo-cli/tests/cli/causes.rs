@@ -285,6 +285,52 @@ fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
         "{err}"
     );
     assert!(run.join("progress.csv").exists(), "nothing may be touched");
+    // the same for a user's link or folder in place of a file apo lists: --force would keep it
+    // and the new run would write over it
+    for (name, make) in [
+        ("progress.csv", "link"),
+        ("episodes.csv", "link"),
+        ("config.toml", "link"),
+        ("progress.csv", "folder"),
+    ] {
+        let run = tmp.path().join(format!("{name}-{make}"));
+        small(&run, &[]);
+        let user = tmp.path().join(format!("{name}-{make}.user"));
+        std::fs::write(&user, b"the user's").expect("user file");
+        std::fs::remove_file(run.join(name)).expect("remove");
+        match make {
+            "link" => std::os::unix::fs::symlink(&user, run.join(name)).expect("link"),
+            _ => {
+                std::fs::create_dir(run.join(name)).expect("folder");
+                std::fs::write(run.join(name).join("mine"), b"x").expect("file in it");
+            }
+        }
+        let err = fails(&[
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--out",
+            path(&run),
+            "--force",
+            "--quiet",
+        ]);
+        assert!(
+            err.contains(name) && err.contains("did not create"),
+            "{err}"
+        );
+        let meta = std::fs::symlink_metadata(run.join(name)).expect("still there");
+        match make {
+            "link" => assert!(meta.file_type().is_symlink(), "{name}: the link stays"),
+            _ => assert!(
+                run.join(name).join("mine").exists(),
+                "{name}: the folder stays"
+            ),
+        }
+        assert_eq!(std::fs::read(&user).expect("user file"), b"the user's");
+        assert!(run.join("train.log").exists(), "nothing may be touched");
+    }
 }
 
 #[test]

@@ -183,6 +183,26 @@ fn plot_terminates_on_non_finite_and_huge_returns() {
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("no completed episode with a finite return")
     );
+    // a column that is empty in every epoch (PPO has no line search) is named as such
+    for column in ["line_search", "success_rate"] {
+        let out = apo_within(
+            60,
+            &[
+                "plot",
+                path(&none),
+                "--out",
+                figure,
+                "--force",
+                "--column",
+                column,
+            ],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(&format!("`{column}`")) && err.contains("empty"),
+            "{column}: {err}"
+        );
+    }
 }
 
 #[test]

@@ -405,6 +405,25 @@ fn sweeps_are_counted_before_anything_is_allocated() {
         assert_eq!(result.status.code(), Some(1), "{seeds}: {err}");
         assert!(err.contains("--max-runs"), "{seeds}: {err}");
     }
+    // an empty range says so (the end is excluded)
+    for seeds in ["5..2", "5..5"] {
+        let err = fails(&[
+            "sweep",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--seeds",
+            seeds,
+            "--out",
+            path(&out),
+        ]);
+        assert!(
+            err.contains("empty range") && err.contains(seeds),
+            "{seeds}: {err}"
+        );
+    }
+    assert!(!out.exists(), "nothing is made");
     let values: Vec<String> = (0..1000)
         .map(|i| format!("{}", 0.001 * (i + 1) as f64))
         .collect();
@@ -494,6 +513,41 @@ fn a_key_set_twice_and_a_list_toml_cannot_hold_are_refused() {
             "{err}"
         );
     }
+    // a section and a value do not stand for each other, also where a flag later sets the
+    // key (`--env`, `--epochs`): said for --set and --config files alike
+    for (set, key, said) in [
+        ("env.x=5", "env", "found a table"),
+        ("epochs.x=5", "epochs", "found a table"),
+        ("env.x=", "env", "found a table"),
+        ("algo.apo=1", "algo.apo", "is a section"),
+    ] {
+        let out = apo(&[
+            "train",
+            "--algo",
+            "apo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "1",
+            "--set",
+            set,
+            "--out",
+            "/nonexistent/never-made",
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(&format!("`{key}`")) && err.contains(said),
+            "--set {set}: {err}"
+        );
+    }
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let file = tmp.path().join("c.toml");
+    std::fs::write(&file, "seed = 1\n[epochs]\nx = 5\n").expect("config");
+    let err = fails(&["config", "--algo", "ppo", "--config", path(&file)]);
+    assert!(
+        err.contains("`epochs`") && err.contains("found a table"),
+        "{err}"
+    );
     let out = apo(&["config", "--set", "hidden=[99999999999999999999]"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -84,7 +84,8 @@ fn theory_refuses_bad_options() {
         ("--max-kl", "1e308", "1e308 is out of its range (0, 1]"),
         ("--gamma", "0.9999999999", "[0, 0.999]"),
         ("--k", "1e308", "[0, 1000]"),
-        ("--temperature", "inf", "[0, 100]"),
+        ("--temperature", "inf", "[0, 4]"),
+        ("--temperature", "100", "[0, 4]"),
         ("--reward-scale", "1e300", "(0, 1e6]"),
         ("--reward-offset", "-1e300", "[-1e6, 1e6]"),
     ] {
@@ -94,6 +95,12 @@ fn theory_refuses_bad_options() {
             "{flag} {value}: {err}"
         );
     }
+    // a run that would check nothing is an error, never a pass
+    let err = fails(&["theory", "--practical-only", "--practical-seeds", "0"]);
+    assert!(
+        err.contains("--practical-seeds") && err.contains("nothing"),
+        "{err}"
+    );
     // the steps check (d) would sample are counted before it starts
     let err = fails(&["theory", "--gamma", "0.999", "--selberg-seeds", "1000"]);
     assert!(
@@ -124,7 +131,7 @@ fn theory_refuses_bad_options() {
         "--k",
         "0,1000",
         "--temperature",
-        "100",
+        "4",
         "--reward-scale",
         "1e6",
         "--reward-offset=-1e6",
