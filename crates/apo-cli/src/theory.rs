@@ -312,6 +312,10 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
             }
         }
         let runs = args.k.len() as f64 * args.iteration_seeds as f64;
+        if args.iteration_seeds == 0 {
+            crate::outln!("(c) {name}: skipped (--iteration-seeds 0)")?;
+            continue;
+        }
         crate::outln!(
             "(c) {name}: B_k decreased in {decreased} of {steps} updates (largest drop {worst:.3e}); mean gain of B_k over {} updates {:.4}",
             args.iterations,
@@ -319,6 +323,10 @@ fn theorem_checks(args: &TheoryArgs, problems: &Problems, norm: Reading) -> anyh
         )?;
     }
 
+    if args.selberg_seeds == 0 {
+        crate::outln!("(d) Selberg: skipped (--selberg-seeds 0)")?;
+        return Ok(());
+    }
     let horizon = selberg_horizon(args.gamma);
     let cases = check_selberg(
         &problems,

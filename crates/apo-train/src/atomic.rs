@@ -9,6 +9,20 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Writes `bytes` to `path` atomically and durably: readers see the old or the new content,
 /// never a part, and the new content survives a power loss once this returns.
 pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    // apo replaces only plain files: a link (every link is the user's) or a folder stays
+    if let Ok(meta) = std::fs::symlink_metadata(path) {
+        if meta.file_type().is_symlink() || meta.is_dir() {
+            return Err(std::io::Error::other(format!(
+                "{} is a {}; apo replaces only plain files (move it away)",
+                path.display(),
+                if meta.is_dir() {
+                    "folder"
+                } else {
+                    "symbolic link"
+                }
+            )));
+        }
+    }
     let dir = parent(path);
     let name = path
         .file_name()

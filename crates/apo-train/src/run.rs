@@ -279,6 +279,9 @@ where
         let writer = launch.comm.rank() == 0;
         let config_path = dir.join(run_dir::CONFIG);
         let mut config = run_dir::check_resumable(dir)?;
+        if writer {
+            run_dir::check_own_places(dir)?;
+        }
         let lock = writer.then(|| RunLock::acquire(dir)).transpose()?;
         if let Some(epochs) = epochs {
             config.train.epochs = epochs;

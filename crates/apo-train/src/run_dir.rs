@@ -265,6 +265,57 @@ pub fn check_resumable(dir: &Path) -> anyhow::Result<RunConfig> {
     Ok(config)
 }
 
+/// Refuses a run directory where something apo did not make sits where apo writes: a link (apo
+/// makes none, so every link is the user's) or a folder at one of its files (`config.toml`,
+/// `progress.csv`, `episodes.csv`, `train.log`), a link at `checkpoints/` or `videos/`, or
+/// anything but a folder at `checkpoints/latest` and `checkpoints/previous`. Checked before a
+/// resume or a `--force` touches anything, so that neither fails half-way.
+///
+/// # Errors
+/// Naming the entry and what to do.
+pub fn check_own_places(dir: &Path) -> anyhow::Result<()> {
+    let kind = |path: &Path| {
+        std::fs::symlink_metadata(path).ok().map(|m| {
+            if m.file_type().is_symlink() {
+                "a symbolic link"
+            } else if m.is_dir() {
+                "a folder"
+            } else if m.is_file() {
+                "a file"
+            } else {
+                "a special file"
+            }
+        })
+    };
+    let mut wrong = Vec::new();
+    for name in [CONFIG, PROGRESS, EPISODES, LOG] {
+        if let Some(k) = kind(&dir.join(name)).filter(|k| *k != "a file") {
+            wrong.push(format!("{name} is {k}"));
+        }
+    }
+    for name in [CHECKPOINTS, VIDEOS] {
+        if let Some(k) = kind(&dir.join(name)).filter(|k| *k != "a folder") {
+            wrong.push(format!("{name} is {k}"));
+        }
+    }
+    for slot in ["latest", "previous"] {
+        let path = dir.join(CHECKPOINTS).join(slot);
+        if let Some(k) = kind(&path).filter(|k| *k != "a folder") {
+            wrong.push(format!("{CHECKPOINTS}/{slot} is {k}"));
+        }
+    }
+    if !wrong.is_empty() {
+        bail!(
+            "{}: {}, where apo writes its own {}; nothing was touched: move {} away",
+            dir.display(),
+            wrong.join(", "),
+            if wrong.len() == 1 { "entry" } else { "entries" },
+            if wrong.len() == 1 { "it" } else { "them" }
+        );
+    }
+    Ok(())
+}
+
 /// Removes what apo created in the run directory `dir` (the entries of its marker, the
 /// checkpoints apo wrote in `checkpoints/`, the videos it wrote in `videos/`, apo's temporary
 /// files) and the marker. The lock file stays while it is held (a new process could otherwise
@@ -524,6 +575,7 @@ impl NewRunDir {
                 foreign.join(", ")
             );
         }
+        check_own_places(dir)?;
         let lock = RunLock::acquire(dir)?;
         let kept = remove_run_files(dir, false, false)?;
         // what apo made and is still there (the lock; `checkpoints/` holding a user's folder)

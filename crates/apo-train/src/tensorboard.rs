@@ -571,6 +571,7 @@ mod tests {
             update_pi_s: 2.0,
             update_v_s: 3.0,
             eval_s: 0.0,
+            sim_s: 0.75,
         }
     }
 
@@ -584,6 +585,7 @@ mod tests {
         assert_eq!(get("bound/confidence"), Some(0.7));
         assert_eq!(get("apo/variance_mean"), Some(2.0));
         assert_eq!(get("speed/steps_per_s"), Some(1500.0));
+        assert_eq!(get("time/sim_s"), Some(0.75));
         assert_eq!(get("apo/mean_variance"), None);
         assert_eq!(get("update/pi_steps"), None);
         let mut tags: Vec<_> = full.iter().map(|(t, _)| *t).collect();

@@ -331,6 +331,73 @@ fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
         assert_eq!(std::fs::read(&user).expect("user file"), b"the user's");
         assert!(run.join("train.log").exists(), "nothing may be touched");
     }
+    // a resume and a --force are refused before anything is touched where a user's link, file or
+    // folder sits where apo writes: a link at progress.csv (a resume would replace it after an
+    // epoch), a link at videos/ (a --force removed the old run first), a file at
+    // checkpoints/previous (found after an epoch)
+    for (entry, force) in [
+        ("progress.csv", false),
+        ("videos", true),
+        ("videos", false),
+        ("checkpoints/previous", false),
+        ("checkpoints/previous", true),
+    ] {
+        let run = tmp
+            .path()
+            .join(format!("{}-{force}", entry.replace('/', "-")));
+        small(&run, &["--set", "render_every=1"]);
+        let user = tmp
+            .path()
+            .join(format!("{}-{force}.user", entry.replace('/', "-")));
+        std::fs::create_dir_all(&user).expect("user folder");
+        let place = run.join(entry);
+        if place.is_dir() {
+            std::fs::remove_dir_all(&place).expect("remove");
+        } else if place.exists() {
+            std::fs::remove_file(&place).expect("remove");
+        }
+        match entry {
+            "checkpoints/previous" => std::fs::write(&place, b"mine").expect("user file"),
+            _ => std::os::unix::fs::symlink(&user, &place).expect("link"),
+        }
+        let before = std::fs::read(run.join("progress.csv")).ok();
+        let out = if force {
+            apo(&[
+                "train",
+                "--algo",
+                "ppo",
+                "--env",
+                "CartPole-v1",
+                "--set",
+                "render_every=1",
+                "--epochs",
+                "1",
+                "--steps-per-epoch",
+                "200",
+                "--quiet",
+                "--force",
+                "--out",
+                path(&run),
+            ])
+        } else {
+            apo(&["train", "--resume", path(&run), "--epochs", "2", "--quiet"])
+        };
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(entry) && err.contains("nothing was touched"),
+            "{entry}, force {force}: {err}"
+        );
+        assert!(
+            std::fs::symlink_metadata(&place).is_ok(),
+            "{entry}: the user's entry stays"
+        );
+        assert!(run.join(".apo-run").exists(), "{entry}: the run stays");
+        assert_eq!(
+            std::fs::read(run.join("progress.csv")).ok(),
+            before,
+            "{entry}, force {force}: the record is untouched"
+        );
+    }
 }
 
 #[test]

@@ -67,6 +67,27 @@ fn every_subcommand_help_shows_an_example() {
 }
 
 #[test]
+fn help_and_version_on_a_full_disk_say_so() {
+    for args in [vec!["--help"], vec!["train", "--help"], vec!["--version"]] {
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .expect("/dev/full");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_apo"))
+            .args(&args)
+            .stdout(file)
+            .output()
+            .expect("apo runs");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot write to standard output"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
 fn completion_scripts_know_every_subcommand() {
     let top = subcommands(&[]);
     for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {

@@ -33,10 +33,12 @@ fn bench_epoch_end_to_end_never_beats_the_simulator_in_the_same_run() {
         "--threads",
         "1",
     ]);
+    // the end-to-end figures are the last line
     let end = out
         .lines()
-        .find(|l| l.starts_with("end_to_end:"))
-        .unwrap_or_else(|| panic!("no end_to_end line: {out}"));
+        .last()
+        .filter(|l| l.starts_with("end_to_end:"))
+        .unwrap_or_else(|| panic!("the last line is not end_to_end: {out}"));
     let (steps, wall) = (field(end, "steps"), field(end, "wall_s"));
     let (rate, sim_rate, share) = (
         field(end, "steps_per_s"),

@@ -228,6 +228,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 med(|e| (e.hidden_s / e.value_s.max(1e-12)).min(1.0)),
                 med(|e| (e.rollout_s - e.sim_s) / e.sim_s.max(1e-12)),
             )?;
+            apo_cli::outln!("(each rollout is charged to the epoch whose data it collects; sim_s: its time inside the simulator's reset and step calls; outside_sim: (rollout_s − sim_s) / sim_s, the rollout's own work against the simulator's; hidden_s: rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout; end_to_end: the whole run, set-up included: steps_per_s = steps / wall_s, what a user waits for, never above sim_steps_per_s = steps / Σ sim_s, the simulator's own speed in this run; sim_share = Σ sim_s / wall_s)")?;
             apo_cli::outln!(
                 "end_to_end: steps={} wall_s={:.3} steps_per_s={:.0} sim_steps_per_s={:.0} sim_share={:.3}",
                 bench.steps,
@@ -236,7 +237,6 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 bench.sim_steps_per_s(),
                 bench.sim_share(),
             )?;
-            apo_cli::outln!("(each rollout is charged to the epoch whose data it collects; sim_s: its time inside the simulator's reset and step calls; outside_sim: (rollout_s − sim_s) / sim_s, the rollout's own work against the simulator's; hidden_s: rollout + policy + value − total, at least 0; overlap: hidden_s / value_s, the share of the value fit hidden behind the next rollout; end_to_end: the whole run, set-up included: steps_per_s = steps / wall_s, what a user waits for, never above sim_steps_per_s = steps / Σ sim_s, the simulator's own speed in this run; sim_share = Σ sim_s / wall_s)")?;
         }
         BenchCommand::Env {
             env,

@@ -198,7 +198,27 @@ fn parse_algo(s: &str) -> Result<Algorithm, String> {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // --help and --version go to stdout through the one writer, so that a full disk or a
+        // closed pipe is said (or ends as SIGPIPE would) as for every other output
+        Err(e)
+            if matches!(
+                e.kind(),
+                clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion
+            ) =>
+        {
+            return match apo_cli::out!("{}", e.render()) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) if apo_cli::terminal::is_closed_pipe(&e) => ExitCode::from(141),
+                Err(e) => {
+                    apo_train::warnln!("error: {e:#}");
+                    ExitCode::FAILURE
+                }
+            };
+        }
+        Err(e) => e.exit(),
+    };
     #[cfg(feature = "atari")]
     if let Err(e) = apo_atari::register_games() {
         apo_train::warnln!("error: {e}");

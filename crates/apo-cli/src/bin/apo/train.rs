@@ -201,6 +201,10 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
     let (backend, create) = match &args.resume {
         Some(dir) => {
             let config = run_dir::check_resumable(dir)?;
+            // before the log opens: a resume never fails half-way on an entry it cannot write
+            if comm.rank() == 0 {
+                run_dir::check_own_places(dir)?;
+            }
             // the run's log is rank 0's; the other ranks log to stderr only
             init_logging((comm.rank() == 0).then_some(dir.as_path()))?;
             (config.backend, None)
