@@ -37,7 +37,7 @@ for suite in suites:
     rates, shares = [], []
     for algo in algos:
         f = pathlib.Path(tmp, f"{suite}-{algo}.txt")
-        m = f.exists() and re.search(r"end_to_end: .*steps_per_s=(\d+) .*sim_share=([\d.]+)", f.read_text())
+        m = f.exists() and re.search(r"^end_to_end: steps=\d+ wall_s=[\d.]+ steps_per_s=(\d+) .* sim_share=([\d.]+)", f.read_text(), re.M)
         if not m:
             missing.append(f"{suite} {algo}")
             rates.append(None)
