@@ -114,3 +114,112 @@ fn completion_scripts_know_every_subcommand() {
     let err = super::fails(&["completions", "tcsh"]);
     assert!(err.contains("bash") && err.contains("zsh"), "{err}");
 }
+
+/// Every `apo …` command shown in a shell block of the README and the handbook names a
+/// subcommand that exists and only flags that subcommand has, so a renamed or removed flag
+/// cannot linger in the docs.
+#[test]
+fn every_command_in_the_docs_uses_flags_that_exist() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let mut pages = vec![root.join("README.md")];
+    for dir in ["docs", "docs/results"] {
+        let mut found: Vec<_> = std::fs::read_dir(root.join(dir))
+            .expect("docs/")
+            .map(|e| e.expect("entry").path())
+            .filter(|p| p.extension().is_some_and(|x| x == "md") && !p.ends_with("cli.md"))
+            .collect();
+        found.sort();
+        pages.extend(found);
+    }
+    let top = subcommands(&[]);
+    let bench = subcommands(&["bench"]);
+    let mut helps: std::collections::BTreeMap<String, String> = Default::default();
+    let (mut checked, mut wrong) = (0, Vec::new());
+    for page in &pages {
+        let text = std::fs::read_to_string(page).expect("page");
+        let mut in_shell = false;
+        // a command continued over several lines (`\` at the end) is read as one
+        let mut lines: Vec<String> = Vec::new();
+        for line in text.lines() {
+            if line.starts_with("```") {
+                in_shell = !in_shell && (line == "```sh" || line == "```bash" || line == "```");
+                continue;
+            }
+            if !in_shell {
+                continue;
+            }
+            match lines.last_mut() {
+                Some(last) if last.ends_with('\\') => {
+                    last.pop();
+                    last.push(' ');
+                    last.push_str(line.trim());
+                }
+                _ => lines.push(line.trim().to_string()),
+            }
+        }
+        for line in lines {
+            let code = line.split(" #").next().unwrap_or("");
+            let words: Vec<&str> = code.split_whitespace().collect();
+            // `for algo in apo papo …`: a list of names, not a command
+            if words.first() == Some(&"for") {
+                continue;
+            }
+            let Some(at) = words.iter().position(|w| {
+                *w == "apo" || w.ends_with("/apo") || *w == "$APO" || *w == "\"$apo\""
+            }) else {
+                continue;
+            };
+            let Some(&command) = words.get(at + 1) else {
+                continue;
+            };
+            if command.starts_with('-') || !top.iter().any(|c| c == command) {
+                if !command.starts_with('-') && command.chars().all(|c| c.is_ascii_lowercase()) {
+                    wrong.push(format!(
+                        "{}: `{line}`: no subcommand `{command}`",
+                        page.display()
+                    ));
+                }
+                continue;
+            }
+            let mut path = vec![command.to_string()];
+            if command == "bench" {
+                match words.get(at + 2) {
+                    Some(sub) if bench.iter().any(|b| b == sub) => path.push(sub.to_string()),
+                    _ => continue,
+                }
+            }
+            let key = path.join(" ");
+            let help = helps.entry(key.clone()).or_insert_with(|| {
+                let mut args: Vec<&str> = path.iter().map(String::as_str).collect();
+                args.push("--help");
+                ok(&args)
+            });
+            for flag in words[at + 1..].iter().filter(|w| w.starts_with("--")) {
+                let flag = flag.split('=').next().unwrap_or(flag);
+                if flag.len() <= 2
+                    || !flag[2..]
+                        .chars()
+                        .all(|c| c.is_ascii_lowercase() || c == '-')
+                {
+                    continue;
+                }
+                checked += 1;
+                let listed = help
+                    .lines()
+                    .any(|l| l.trim_start().split([' ', ',']).any(|w| w == flag));
+                if !listed {
+                    wrong.push(format!(
+                        "{}: `{line}`: `apo {key}` has no {flag}",
+                        page.display()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(checked > 100, "only {checked} flags found in the docs");
+    assert!(
+        wrong.is_empty(),
+        "commands in the docs that do not parse:\n{}",
+        wrong.join("\n")
+    );
+}

@@ -239,9 +239,7 @@ fn main() -> ExitCode {
         Command::Summary(args) => done(summary::run(&args)),
         Command::Stats(args) => done(stats::run(&args)),
         Command::Completions { shell } => done(completions(shell)),
-        Command::MarkdownHelp => {
-            done(apo_cli::out!("{}", clap_markdown::help_markdown::<Cli>()).map_err(Into::into))
-        }
+        Command::MarkdownHelp => done(apo_cli::out!("{}", clap_markdown::help_markdown::<Cli>())),
     };
     result.unwrap_or_else(|e| {
         if apo_cli::terminal::is_closed_pipe(&e) {
