@@ -268,7 +268,7 @@ pub fn check_resumable(dir: &Path) -> anyhow::Result<RunConfig> {
 /// Refuses a run directory where something apo did not make sits where apo writes: a link (apo
 /// makes none, so every link is the user's) or a folder at one of its files (`config.toml`,
 /// `progress.csv`, `episodes.csv`, `train.log`), a link at `checkpoints/` or `videos/`, or
-/// anything but a folder at `checkpoints/latest` and `checkpoints/previous`. Checked before a
+/// anything but a folder at `checkpoints/latest`, `checkpoints/previous` and `checkpoints/best`. Checked before a
 /// resume or a `--force` touches anything, so that neither fails half-way.
 ///
 /// # Errors
@@ -298,7 +298,7 @@ pub fn check_own_places(dir: &Path) -> anyhow::Result<()> {
             wrong.push(format!("{name} is {k}"));
         }
     }
-    for slot in ["latest", "previous"] {
+    for slot in ["latest", "previous", "best"] {
         let path = dir.join(CHECKPOINTS).join(slot);
         if let Some(k) = kind(&path).filter(|k| *k != "a folder") {
             wrong.push(format!("{CHECKPOINTS}/{slot} is {k}"));

@@ -341,6 +341,8 @@ fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
         ("videos", false),
         ("checkpoints/previous", false),
         ("checkpoints/previous", true),
+        ("checkpoints/best", false),
+        ("checkpoints/best", true),
     ] {
         let run = tmp
             .path()
@@ -357,7 +359,9 @@ fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
             std::fs::remove_file(&place).expect("remove");
         }
         match entry {
-            "checkpoints/previous" => std::fs::write(&place, b"mine").expect("user file"),
+            "checkpoints/previous" | "checkpoints/best" => {
+                std::fs::write(&place, b"mine").expect("user file")
+            }
             _ => std::os::unix::fs::symlink(&user, &place).expect("link"),
         }
         let before = std::fs::read(run.join("progress.csv")).ok();
