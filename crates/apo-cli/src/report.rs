@@ -970,6 +970,20 @@ pub fn csv(report: &Report) -> anyhow::Result<String> {
 /// The statistics of a report, as JSON ([`MetricStatistics`] per metric).
 pub const STATISTICS_JSON: &str = "statistics.json";
 
+/// The files [`write`] may write into its folder whatever the runs are (all but the
+/// per-environment curves): for a command to check them before any work.
+pub fn fixed_outputs() -> Vec<String> {
+    let mut names = vec![
+        "report.md".to_string(),
+        "report.csv".to_string(),
+        STATISTICS_JSON.to_string(),
+    ];
+    for metric in RunMetric::ALL {
+        names.extend(statistics_figures(metric));
+    }
+    names
+}
+
 /// The marker of a report folder: the files `apo report` wrote there.
 pub const REPORT_MARKER: &str = ".apo-report";
 

@@ -9,19 +9,13 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Writes `bytes` to `path` atomically and durably: readers see the old or the new content,
 /// never a part, and the new content survives a power loss once this returns.
 pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    // apo replaces only plain files: a link (every link is the user's) or a folder stays
-    if let Ok(meta) = std::fs::symlink_metadata(path) {
-        if meta.file_type().is_symlink() || meta.is_dir() {
-            return Err(std::io::Error::other(format!(
-                "{} is a {}; apo replaces only plain files (move it away)",
-                path.display(),
-                if meta.is_dir() {
-                    "folder"
-                } else {
-                    "symbolic link"
-                }
-            )));
-        }
+    // apo replaces only plain files: a link (every link is the user's), a folder or a special
+    // file (a pipe, socket or device: apo makes none) stays
+    if let Some(kind) = not_plain(path) {
+        return Err(std::io::Error::other(format!(
+            "{} is {kind}; apo replaces only plain files (move it away)",
+            path.display()
+        )));
     }
     let dir = parent(path);
     let name = path
@@ -38,6 +32,24 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         return Err(e);
     }
     sync_dir(dir)
+}
+
+/// What `path` is when something other than a plain file is there (`"a symbolic link"`, `"a
+/// folder"`, `"a special file"`: a pipe, socket or device); `None` when it is a plain file or
+/// missing. apo makes only plain files and folders and never links or special files, so such
+/// an entry where apo writes a file is the user's.
+pub fn not_plain(path: &Path) -> Option<&'static str> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    let kind = meta.file_type();
+    if kind.is_symlink() {
+        Some("a symbolic link")
+    } else if kind.is_dir() {
+        Some("a folder")
+    } else if !kind.is_file() {
+        Some("a special file (a pipe, socket or device)")
+    } else {
+        None
+    }
 }
 
 /// The bytes of a file's name kept in its temporary file's name.
@@ -83,7 +95,7 @@ fn temp_pid(entry: &str) -> Option<i32> {
     let (_, ids) = inner.rsplit_once(".apo-")?;
     let (pid, n) = ids.split_once('-')?;
     n.parse::<u64>().ok()?;
-    pid.parse().ok()
+    pid.parse().ok().filter(|&p: &i32| p > 0)
 }
 
 /// Whether the process `pid` is gone (`kill(pid, 0)` says ESRCH).
@@ -99,6 +111,12 @@ fn gone(pid: i32) -> bool {
         let _ = pid;
         false
     }
+}
+
+/// Whether `entry` is a temporary file of apo's form whose process is still running (one
+/// being written at this moment).
+pub fn is_live_temp(entry: &str) -> bool {
+    temp_pid(entry).is_some_and(|pid| !gone(pid))
 }
 
 /// Removes from `dir` the temporary files of apo's form whose process is gone (one stopped by a

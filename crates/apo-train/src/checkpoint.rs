@@ -399,6 +399,34 @@ fn is_checkpoint_name(name: &str) -> bool {
         || name.strip_prefix(".tmp-").is_some_and(digits)
 }
 
+/// What in the checkpoint folder `root` is not apo's although it has a name apo gives (see
+/// `run_dir::check_own_places`): a checkpoint name that is not a folder, or an entry of a
+/// checkpoint folder that is not a plain file; each as `checkpoints/<name>[/<entry>] is <kind>`.
+pub(crate) fn foreign_entries(root: &Path) -> Vec<String> {
+    let mut wrong = Vec::new();
+    if !std::fs::symlink_metadata(root).is_ok_and(|m| m.is_dir()) {
+        return wrong;
+    }
+    let Ok(names) = crate::removal::entry_names(root) else {
+        return wrong;
+    };
+    for name in names.into_iter().filter(|n| is_checkpoint_name(n)) {
+        let path = root.join(&name);
+        match atomic::not_plain(&path) {
+            Some("a folder") => {
+                for entry in crate::removal::entry_names(&path).unwrap_or_default() {
+                    if let Some(kind) = atomic::not_plain(&path.join(&entry)) {
+                        wrong.push(format!("{FOLDER}/{name}/{entry} is {kind}"));
+                    }
+                }
+            }
+            Some(kind) => wrong.push(format!("{FOLDER}/{name} is {kind}")),
+            None => wrong.push(format!("{FOLDER}/{name} is a file")),
+        }
+    }
+    wrong
+}
+
 /// Empties the checkpoint folder `path` of a checkpoint's files and removes it. Files apo did
 /// not write there are never removed: the folder is then moved aside (`<name>.kept-<N>`, with
 /// a warning) so that its name is free for the new checkpoint.
@@ -894,6 +922,13 @@ fn no_panic<T>(f: impl FnOnce() -> T) -> anyhow::Result<T> {
             .unwrap_or_else(|| "unknown panic".to_string());
         anyhow::anyhow!("reading it failed: {message}")
     })
+}
+
+/// The epoch of a run's first checkpoint: `checkpoint_every`, or the last epoch when that
+/// comes first. A run whose records stop at or before it and that has no checkpoint was
+/// stopped before writing one, and starts again from epoch 0.
+pub(crate) fn first_due(config: &crate::TrainConfig) -> usize {
+    config.checkpoint_every.min(config.epochs)
 }
 
 #[cfg(test)]

@@ -101,7 +101,15 @@ impl LoadedRun {
         let from = checkpoint::locate(run_dir, which)?.with_context(|| {
             let recorded = crate::progress_csv::read_lenient(&run_dir.join("progress.csv"), true)
                 .map_or(0, |p| p.rows.last().map_or(0, |r| r.epoch));
-            if recorded > 0 {
+            if recorded > 0 && recorded <= checkpoint::first_due(&config.train) {
+                format!(
+                    "{} has no checkpoint yet: the run stopped after {recorded} epochs, before its first checkpoint \
+                     (due at epoch {}); `apo train --resume {}` trains it again from epoch 0",
+                    run_dir.display(),
+                    checkpoint::first_due(&config.train),
+                    run_dir.display()
+                )
+            } else if recorded > 0 {
                 format!(
                     "{} has no checkpoint (checkpoints/latest and previous are missing), although its \
                      progress.csv records {recorded} epochs: the checkpoints were removed",

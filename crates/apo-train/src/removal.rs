@@ -1,7 +1,8 @@
 //! The one place where apo deletes anything: [`remove_created`] removes named files and a
 //! folder only once it is empty, so no folder with a user's file in it is ever removed; and it
 //! never follows or removes a symbolic link: apo makes none, so every link is the user's, and
-//! what it points to lies outside what apo may clean. Callers name only what apo created (see
+//! what it points to lies outside what apo may clean; nor a special file (a pipe, socket or
+//! device), which apo never makes either. Callers name only what apo created (see
 //! `run_dir` for how that is known).
 
 use std::path::Path;
@@ -32,7 +33,9 @@ pub fn remove_created(
         let Ok(meta) = std::fs::symlink_metadata(&path) else {
             continue;
         };
-        if meta.file_type().is_symlink() {
+        // apo makes no links and no special files (pipes, sockets, devices): those are the
+        // user's, whatever their name
+        if meta.file_type().is_symlink() || !(meta.is_dir() || meta.is_file()) {
             continue;
         }
         if meta.is_dir() {

@@ -454,12 +454,26 @@ where
                 None if on_disk.is_empty() || !writer => {
                     tracing::info!("no checkpoint and no completed epoch: the run starts from epoch 0");
                 }
+                // stopped before its first checkpoint was written (killed, or the disk full
+                // when it was due): epoch 0 is its last checkpoint, and the rows after it are
+                // run again like those after any other checkpoint (same seed, same rows)
+                None if on_disk.len() <= checkpoint::first_due(&config.train) => {
+                    tracing::info!(
+                        rows = on_disk.len(),
+                        "the run stopped before its first checkpoint: it starts again from epoch 0 (same seed, same rows)"
+                    );
+                    episodes = EpisodeLog::resume(&episodes_path, 0)?;
+                }
                 None => bail!(
-                    "{} has {} epoch rows but there is no checkpoint ({} is missing): the run cannot continue where it \
-                     stopped. Its files are kept; restore the checkpoint, or start a new run with another --out",
+                    "{} has {} epoch rows but there is no checkpoint ({} is missing, although one was due at epoch {}): \
+                     the run cannot continue where it stopped. Its files are kept; restore the checkpoint, or train \
+                     it again from epoch 0 in place with `apo train --config {} --out {} --force` (or into another --out)",
                     progress_path.display(),
                     on_disk.len(),
-                    checkpoint::dir(run_dir).join("latest").join("state.json").display()
+                    checkpoint::dir(run_dir).join("latest").join("state.json").display(),
+                    checkpoint::first_due(&config.train),
+                    run_dir.join(crate::run_dir::CONFIG).display(),
+                    run_dir.display()
                 ),
             }
         }

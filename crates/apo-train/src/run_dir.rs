@@ -178,16 +178,24 @@ pub fn claim_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Resu
 /// Naming a file apo would overwrite but did not write.
 pub fn check_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Result<()> {
     let listed = created_entries_in(dir, marker)?.unwrap_or_default();
-    if let Some(foreign) = names
-        .iter()
-        .find(|n| !listed.contains(*n) && std::fs::symlink_metadata(dir.join(n)).is_ok())
-    {
-        bail!(
-            "{} exists and was not written by apo (not listed in {}); apo does not overwrite it: \
-             move it away or choose another --out",
-            dir.join(foreign).display(),
-            dir.join(marker).display()
-        );
+    for name in names {
+        let path = dir.join(name);
+        // apo writes plain files only: a link, folder or special file of a listed name is the
+        // user's, put there after apo wrote its file
+        if let Some(kind) = crate::atomic::not_plain(&path) {
+            bail!(
+                "{} is {kind}, not a file apo wrote; apo does not replace it: move it away or choose another --out",
+                path.display()
+            );
+        }
+        if !listed.contains(name) && std::fs::symlink_metadata(&path).is_ok() {
+            bail!(
+                "{} exists and was not written by apo (not listed in {}); apo does not overwrite it: \
+                 move it away or choose another --out",
+                path.display(),
+                dir.join(marker).display()
+            );
+        }
     }
     Ok(())
 }
@@ -265,43 +273,50 @@ pub fn check_resumable(dir: &Path) -> anyhow::Result<RunConfig> {
     Ok(config)
 }
 
-/// Refuses a run directory where something apo did not make sits where apo writes: a link (apo
-/// makes none, so every link is the user's) or a folder at one of its files (`config.toml`,
-/// `progress.csv`, `episodes.csv`, `train.log`), a link at `checkpoints/` or `videos/`, or
-/// anything but a folder at `checkpoints/latest`, `checkpoints/previous` and `checkpoints/best`. Checked before a
-/// resume or a `--force` touches anything, so that neither fails half-way.
+/// Refuses a run directory where something apo did not make sits where apo writes or
+/// removes: apo makes only plain files and folders, never links or special files (pipes,
+/// sockets, devices), so any of those is the user's. Checked: apo's files (`config.toml`,
+/// `progress.csv`, `episodes.csv`, `train.log` and every other entry its marker lists, such as
+/// the TensorBoard files) must be plain files; `checkpoints/` and `videos/` folders; every
+/// checkpoint apo names in `checkpoints/` (`latest`, `previous`, `best`, `epoch-<N>`, its
+/// temporary folders) a folder of plain files; every video apo names in `videos/` a plain file.
+/// Checked before a resume or a `--force` touches anything, so that neither fails half-way and
+/// neither replaces nor removes what is the user's.
 ///
 /// # Errors
-/// Naming the entry and what to do.
+/// Naming the entries and what to do.
 pub fn check_own_places(dir: &Path) -> anyhow::Result<()> {
-    let kind = |path: &Path| {
-        std::fs::symlink_metadata(path).ok().map(|m| {
-            if m.file_type().is_symlink() {
-                "a symbolic link"
-            } else if m.is_dir() {
-                "a folder"
-            } else if m.is_file() {
-                "a file"
-            } else {
-                "a special file"
-            }
-        })
-    };
     let mut wrong = Vec::new();
-    for name in [CONFIG, PROGRESS, EPISODES, LOG] {
-        if let Some(k) = kind(&dir.join(name)).filter(|k| *k != "a file") {
-            wrong.push(format!("{name} is {k}"));
+    let mut files: BTreeSet<String> = [CONFIG, PROGRESS, EPISODES, LOG]
+        .into_iter()
+        .map(str::to_string)
+        .collect();
+    files.extend(created_entries(dir)?.unwrap_or_default());
+    for name in files.iter().filter(|n| *n != CHECKPOINTS && *n != VIDEOS) {
+        if let Some(kind) = crate::atomic::not_plain(&dir.join(name)) {
+            wrong.push(format!("{name} is {kind}"));
         }
     }
     for name in [CHECKPOINTS, VIDEOS] {
-        if let Some(k) = kind(&dir.join(name)).filter(|k| *k != "a folder") {
-            wrong.push(format!("{name} is {k}"));
+        match std::fs::symlink_metadata(dir.join(name)) {
+            Ok(m) if m.is_dir() => {}
+            Ok(_) => {
+                let kind = crate::atomic::not_plain(&dir.join(name)).unwrap_or("a file");
+                wrong.push(format!("{name} is {kind}"));
+            }
+            Err(_) => {}
         }
     }
-    for slot in ["latest", "previous", "best"] {
-        let path = dir.join(CHECKPOINTS).join(slot);
-        if let Some(k) = kind(&path).filter(|k| *k != "a folder") {
-            wrong.push(format!("{CHECKPOINTS}/{slot} is {k}"));
+    wrong.extend(crate::checkpoint::foreign_entries(&dir.join(CHECKPOINTS)));
+    let videos = dir.join(VIDEOS);
+    if std::fs::symlink_metadata(&videos).is_ok_and(|m| m.is_dir()) {
+        for name in crate::removal::entry_names(&videos)? {
+            let video = crate::atomic::temp_target(&name).unwrap_or(&name);
+            if is_video_name(video, usize::MAX) {
+                if let Some(kind) = crate::atomic::not_plain(&videos.join(&name)) {
+                    wrong.push(format!("{VIDEOS}/{name} is {kind}"));
+                }
+            }
         }
     }
     if !wrong.is_empty() {
@@ -516,10 +531,21 @@ impl NewRunDir {
             crate::atomic::remove_dead_temps(dir, None);
         }
         let entries = crate::removal::entry_names(dir)?;
-        // a folder another apo is making a run in at this moment holds its lock, marker and
-        // their live temporary files: the lock decides between the two
+        // a folder another apo is making a run in at this moment holds its marker, the lock file
+        // the marker lists and the marker's temporary files of a running apo: the lock decides
+        // between the two. Anything else of those names (a lock file without a marker that lists
+        // it, one that is not a plain file, a temporary name of a process that is gone) is the
+        // user's, and the folder is not empty
+        let marked = created_entries(dir)?;
         let ours = |n: &String| {
-            n == LOCK || n == MARKER || crate::atomic::temp_target(n).is_some_and(|t| t == MARKER)
+            if n == MARKER {
+                return true;
+            }
+            if n == LOCK {
+                return marked.as_ref().is_some_and(|m| m.contains(LOCK))
+                    && std::fs::symlink_metadata(dir.join(LOCK)).is_ok_and(|m| m.is_file());
+            }
+            crate::atomic::is_temp_of(n, MARKER) && crate::atomic::is_live_temp(n)
         };
         if entries.iter().all(ours) {
             claim_new(dir, &[LOCK])?;

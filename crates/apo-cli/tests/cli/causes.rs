@@ -2,6 +2,7 @@
 //! a config but no run, the file's actual header — and clashing flags are refused the same
 //! way by every subcommand (clap's conflict error, exit status 2).
 
+use std::os::unix::fs::FileTypeExt;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -331,65 +332,75 @@ fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
         assert_eq!(std::fs::read(&user).expect("user file"), b"the user's");
         assert!(run.join("train.log").exists(), "nothing may be touched");
     }
-    // a resume and a --force are refused before anything is touched where a user's link, file or
-    // folder sits where apo writes: a link at progress.csv (a resume would replace it after an
-    // epoch), a link at videos/ (a --force removed the old run first), a file at
-    // checkpoints/previous (found after an epoch)
-    for (entry, force) in [
-        ("progress.csv", false),
-        ("videos", true),
-        ("videos", false),
-        ("checkpoints/previous", false),
-        ("checkpoints/previous", true),
-        ("checkpoints/best", false),
-        ("checkpoints/best", true),
+    // a resume and a --force are refused before anything is touched where something apo did
+    // not make sits where apo writes or removes: apo makes no links and no special files, and
+    // keeps its checkpoints as folders of plain files
+    for (entry, plant, force) in [
+        ("progress.csv", "link", false),
+        ("videos", "link", true),
+        ("videos", "link", false),
+        ("videos/epoch-1.gif", "link", true),
+        ("checkpoints/previous", "file", false),
+        ("checkpoints/previous", "file", true),
+        ("checkpoints/best", "file", false),
+        ("checkpoints/best", "file", true),
+        ("checkpoints/epoch-000001", "file", true),
+        ("checkpoints/latest/state.json", "fifo", true),
+        ("checkpoints/latest/state.json", "fifo", false),
+        ("events.out.tfevents.", "fifo", true),
+        ("events.out.tfevents.", "fifo", false),
     ] {
-        let run = tmp
-            .path()
-            .join(format!("{}-{force}", entry.replace('/', "-")));
-        small(&run, &["--set", "render_every=1"]);
-        let user = tmp
-            .path()
-            .join(format!("{}-{force}.user", entry.replace('/', "-")));
+        let label = format!("{}-{plant}-{force}", entry.replace('/', "-"));
+        let run = tmp.path().join(&label);
+        let extra = [
+            "--set",
+            "render_every=1",
+            "--set",
+            "keep_checkpoint_every=1",
+        ];
+        small(&run, &extra);
+        let user = tmp.path().join(format!("{label}.user"));
         std::fs::create_dir_all(&user).expect("user folder");
-        let place = run.join(entry);
+        // the TensorBoard file's name has the time in it
+        let entry = match entry {
+            "events.out.tfevents." => std::fs::read_dir(&run)
+                .expect("ls")
+                .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+                .find(|n| n.starts_with(entry))
+                .expect("an event file"),
+            _ => entry.to_string(),
+        };
+        let place = run.join(&entry);
         if place.is_dir() {
             std::fs::remove_dir_all(&place).expect("remove");
         } else if place.exists() {
             std::fs::remove_file(&place).expect("remove");
         }
-        match entry {
-            "checkpoints/previous" | "checkpoints/best" => {
-                std::fs::write(&place, b"mine").expect("user file")
-            }
+        match plant {
+            "file" => std::fs::write(&place, b"mine").expect("user file"),
+            "fifo" => assert!(std::process::Command::new("mkfifo")
+                .arg(&place)
+                .status()
+                .expect("mkfifo (coreutils)")
+                .success()),
             _ => std::os::unix::fs::symlink(&user, &place).expect("link"),
         }
         let before = std::fs::read(run.join("progress.csv")).ok();
         let out = if force {
-            apo(&[
-                "train",
-                "--algo",
-                "ppo",
-                "--env",
-                "CartPole-v1",
-                "--set",
-                "render_every=1",
-                "--epochs",
-                "1",
-                "--steps-per-epoch",
-                "200",
-                "--quiet",
-                "--force",
-                "--out",
-                path(&run),
-            ])
+            let mut args = small_args(&run);
+            args.extend_from_slice(&extra);
+            args.push("--force");
+            apo_within(60, &args)
         } else {
-            apo(&["train", "--resume", path(&run), "--epochs", "2", "--quiet"])
+            apo_within(
+                60,
+                &["train", "--resume", path(&run), "--epochs", "2", "--quiet"],
+            )
         };
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            !out.status.success() && err.contains(entry) && err.contains("nothing was touched"),
-            "{entry}, force {force}: {err}"
+            !out.status.success() && err.contains(&entry) && err.contains("nothing was touched"),
+            "{entry} ({plant}), force {force}: {err}"
         );
         assert!(
             std::fs::symlink_metadata(&place).is_ok(),
@@ -402,6 +413,143 @@ fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
             "{entry}, force {force}: the record is untouched"
         );
     }
+}
+
+/// Rule: a folder is a new run's only when it is empty or holds nothing but what a running apo
+/// is making there (its marker, the lock file the marker lists, the marker's temporary files
+/// of a live process); anything else of apo's names is the user's, and the folder is refused
+/// untouched.
+#[test]
+fn a_folder_with_files_of_apo_names_only_is_not_taken_for_an_empty_one() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    for (name, folder) in [
+        ("apo.lock", false),
+        ("apo.lock", true),
+        (".apo-run.apo-999999-0.tmp", false),
+    ] {
+        let out = tmp
+            .path()
+            .join(format!("{}-{folder}", name.trim_start_matches('.')));
+        std::fs::create_dir(&out).expect("folder");
+        let planted = out.join(name);
+        if folder {
+            std::fs::create_dir(&planted).expect("user folder");
+        } else {
+            std::fs::write(&planted, b"mine").expect("user file");
+        }
+        let err = fails(&small_args(&out));
+        assert!(err.contains("apo did not make it"), "{name}: {err}");
+        let left: Vec<String> = std::fs::read_dir(&out)
+            .expect("ls")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(left, vec![name.to_string()], "{name}: nothing added");
+        if !folder {
+            assert_eq!(std::fs::read(&planted).expect("read"), b"mine");
+        }
+    }
+}
+
+/// Rule: the epochs after a run's last checkpoint are run again on resume (same seed, same
+/// rows); a run stopped before its first checkpoint has epoch 0 as its last one. Records past
+/// a checkpoint that was due and is gone are refused, naming how to start over.
+#[test]
+fn a_run_stopped_before_its_first_checkpoint_resumes_from_epoch_zero() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let whole = tmp.path().join("whole");
+    let cut = tmp.path().join("cut");
+    let every = ["--set", "checkpoint_every=5"];
+    train(&whole, "ppo", &every);
+    train(&cut, "ppo", &every);
+    // a run killed before its first checkpoint (due at epoch 3, the last) has records but no
+    // checkpoint folder
+    std::fs::remove_dir_all(cut.join("checkpoints")).expect("rm");
+    let err = fails(&["eval", "--run", path(&cut)]);
+    assert!(
+        err.contains("before its first checkpoint") && err.contains("--resume"),
+        "{err}"
+    );
+    ok(&["train", "--resume", path(&cut), "--quiet"]);
+    assert_eq!(timeless(&cut), timeless(&whole));
+    assert_eq!(
+        std::fs::read(cut.join("episodes.csv")).expect("episodes"),
+        std::fs::read(whole.join("episodes.csv")).expect("episodes")
+    );
+    // with a checkpoint due at every epoch, three records and no checkpoint are a loss
+    let lost = tmp.path().join("lost");
+    train(&lost, "ppo", &[]);
+    std::fs::remove_dir_all(lost.join("checkpoints")).expect("rm");
+    let before = std::fs::read(lost.join("progress.csv")).expect("progress");
+    let err = fails(&["train", "--resume", path(&lost), "--quiet"]);
+    assert!(
+        err.contains("--force") && err.contains("due at epoch 1"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(lost.join("progress.csv")).expect("kept"),
+        before
+    );
+}
+
+/// Rule: an output apo replaces (a report's files, the default video) is replaced only when it
+/// is a plain file apo wrote: a link or special file there is refused before any work.
+#[test]
+fn outputs_of_apo_names_that_are_links_or_pipes_are_refused_before_any_work() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let mkfifo = |p: &Path| {
+        assert!(std::process::Command::new("mkfifo")
+            .arg(p)
+            .status()
+            .expect("mkfifo (coreutils)")
+            .success())
+    };
+    // a report folder: a pipe at a name the report writes, before and after apo wrote it
+    let fresh = tmp.path().join("fresh");
+    std::fs::create_dir(&fresh).expect("folder");
+    mkfifo(&fresh.join("statistics.json"));
+    let out = apo_within(60, &["report", path(&run), "--out", path(&fresh)]);
+    assert!(
+        !out.status.success() && out.stdout.is_empty(),
+        "refused, nothing printed"
+    );
+    assert!(
+        text(&out.stderr).contains("statistics.json"),
+        "{}",
+        text(&out.stderr)
+    );
+    let again = tmp.path().join("again");
+    ok(&["report", path(&run), "--out", path(&again)]);
+    std::fs::remove_file(again.join("report.csv")).expect("rm");
+    mkfifo(&again.join("report.csv"));
+    let out = apo_within(60, &["report", path(&run), "--out", path(&again)]);
+    assert!(!out.status.success(), "refused");
+    assert!(
+        text(&out.stderr).contains("report.csv"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(std::fs::symlink_metadata(again.join("report.csv"))
+        .expect("kept")
+        .file_type()
+        .is_fifo());
+    // the run's default video: a link there is the user's
+    let precious = tmp.path().join("precious.gif");
+    std::fs::write(&precious, b"mine").expect("write");
+    ok(&["render", "--run", path(&run), "--episodes", "1"]);
+    std::fs::remove_file(run.join("videos/render.gif")).expect("rm");
+    std::os::unix::fs::symlink(&precious, run.join("videos/render.gif")).expect("link");
+    let err = fails(&["render", "--run", path(&run), "--episodes", "1"]);
+    assert!(
+        err.contains("render.gif") && err.contains("symbolic link"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&precious).expect("read"), b"mine");
+    assert!(std::fs::symlink_metadata(run.join("videos/render.gif"))
+        .expect("kept")
+        .file_type()
+        .is_symlink());
 }
 
 #[test]

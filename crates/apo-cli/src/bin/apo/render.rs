@@ -68,7 +68,16 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
             } else {
                 args.run.join(VIDEOS)
             };
-            (dir.join("render.gif"), true)
+            // apo's own video, replaced by each render; a link or special file there is the user's
+            let gif = dir.join("render.gif");
+            if let Some(kind) = apo_train::atomic::not_plain(&gif) {
+                anyhow::bail!(
+                    "{} is {kind}, not a video apo wrote; apo does not replace it: move it away, or give \
+                     `apo render` an --out",
+                    gif.display()
+                );
+            }
+            (gif, true)
         }
     };
     let options = RenderOptions {

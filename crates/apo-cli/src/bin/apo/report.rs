@@ -42,8 +42,7 @@ pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     // every option is checked before any work
     if let Some(out) = &args.out {
         apo_train::input::prepare_output_dir(out, "--out")?;
-        let fixed = ["report.md".to_string(), "report.csv".to_string()];
-        apo_train::run_dir::check_outputs(out, report::REPORT_MARKER, &fixed)?;
+        apo_train::run_dir::check_outputs(out, report::REPORT_MARKER, &report::fixed_outputs())?;
     }
     // the profiles hold reps × thresholds values at once (the default thresholds: 101)
     apo_train::input::check_fits(
@@ -84,11 +83,14 @@ pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     if let Some(Some(bar)) = bar {
         bar.finish_and_clear();
     }
+    // the files first: a report that cannot be written is not printed as if it had been
+    let written = match &args.out {
+        Some(out) => report::write(&report, out, &args.image, args.smooth)?,
+        None => Vec::new(),
+    };
     apo_cli::out!("{}", report::markdown(&report))?;
-    if let Some(out) = &args.out {
-        for path in report::write(&report, out, &args.image, args.smooth)? {
-            apo_train::warnln!("wrote {}", path.display());
-        }
+    for path in written {
+        apo_train::warnln!("wrote {}", path.display());
     }
     Ok(())
 }
