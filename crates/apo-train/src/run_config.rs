@@ -251,10 +251,27 @@ impl RunConfig {
         let backend = field(&mut doc, "backend")?;
         let kernels = field(&mut doc, "kernels")?;
         let render_every = field(&mut doc, "render_every")?;
+        // the algorithm of the one section `algo.<name>`: serde's path leaves its name out
+        let algo = match doc.get("algo") {
+            Some(toml::Value::Table(t)) if t.len() == 1 => {
+                t.keys().next().and_then(|k| k.parse::<Algorithm>().ok())
+            }
+            _ => None,
+        };
         let train = serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(|e| {
+            let mut key = e.path().to_string();
+            if let (Some(algo), Some(inner)) = (algo, key.strip_prefix("algo.")) {
+                if !inner.starts_with(&format!("{algo}.")) {
+                    key = format!("algo.{algo}.{inner}");
+                }
+            }
+            let doc = algo.map_or_else(String::new, |algo| {
+                let setting = key.split('[').next().unwrap_or(&key);
+                key_doc(setting, &Self::defaults(algo, "").train.algo)
+            });
             ConfigFileError::Type {
-                key: e.path().to_string(),
-                message: e.into_inner().to_string(),
+                message: explain_type_error(&e.into_inner().to_string(), &doc),
+                key,
             }
         })?;
         Ok(Self {
@@ -630,10 +647,26 @@ fn unknown(key: &str, doc_keys: &[String]) -> ConfigFileError {
             Err(_) => {}
         }
     }
+    if let ["algo", name] = parts.as_slice() {
+        let names: Vec<&str> = Algorithm::ALL.iter().map(|a| a.name()).collect();
+        return ConfigFileError::Type {
+            key: key.to_string(),
+            message: format!(
+                "`{name}` is not an algorithm: a config's section is [algo.<name>] with one of {}",
+                names.join(", ")
+            ),
+        };
+    }
+    // the closest key of the same section, by its last part (whole dotted keys share their
+    // section's prefix, which would make any key of it look close)
+    let (parent, last) = key.rsplit_once('.').unwrap_or(("", key));
     let suggestion = doc_keys
         .iter()
         .map(String::as_str)
-        .map(|k| (strsim::jaro_winkler(k, key), k))
+        .filter_map(|k| {
+            let (p, l) = k.rsplit_once('.').unwrap_or(("", k));
+            (p == parent).then(|| (strsim::jaro_winkler(l, last), k))
+        })
         .filter(|(score, _)| *score > 0.8)
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, k)| k.to_string());
@@ -891,6 +924,18 @@ pub fn parse_value(text: &str) -> Result<toml::Value, String> {
             i64::MAX
         ));
     }
+    let digits = text.trim_start_matches(['+', '-']);
+    if digits.len() > 1 && digits.starts_with('0') && digits.as_bytes()[1].is_ascii_digit() {
+        return Err(format!(
+            "`{text}`: a number is written without leading zeros (TOML), e.g. `{}`",
+            digits
+                .trim_start_matches('0')
+                .split(['.', 'e', 'E'])
+                .next()
+                .filter(|d| !d.is_empty())
+                .unwrap_or("0")
+        ));
+    }
     if looks_numeric(text) {
         return Err(format!(
             "`{text}` is a number out of range: integers are from {} to {}, floats finite (at most about 1.8e308)",
@@ -899,6 +944,56 @@ pub fn parse_value(text: &str) -> Result<toml::Value, String> {
         ));
     }
     Ok(toml::Value::String(text.to_string()))
+}
+
+/// serde's type error `message` in the user's words: what was found (a number written short,
+/// never 309 digits), then what the key takes (`doc`, its meaning and range).
+fn explain_type_error(message: &str, doc: &str) -> String {
+    let first = message.lines().next().unwrap_or(message);
+    let text = match first
+        .strip_prefix("invalid type: ")
+        .and_then(|m| m.split_once(", expected "))
+    {
+        Some((found, _)) => {
+            let quoted = found
+                .split_once('`')
+                .and_then(|(_, rest)| rest.rsplit_once('`'))
+                .map(|(v, _)| v);
+            let found = match (found.split_once(' ').map(|(k, _)| k), quoted) {
+                (Some("floating"), Some(v)) => match v.parse::<f64>() {
+                    // an integer key given `1e3` or `3.0`
+                    Ok(f) if f.fract() == 0.0 && f.abs() < 1e15 => format!(
+                        "the decimal number {}, where a whole number is written without a point or exponent, `{}`",
+                        short_number(f),
+                        f as i64
+                    ),
+                    Ok(f) => format!("the decimal number {}", short_number(f)),
+                    Err(_) => "a decimal number".to_string(),
+                },
+                (Some("integer"), Some(v)) => format!("the whole number {v}"),
+                (Some("string"), _) => format!("the text {}", found.trim_start_matches("string ")),
+                (Some("boolean"), Some(v)) => format!("the value {v}"),
+                _ if found.starts_with("unit") => "a value of another kind".to_string(),
+                _ => found.to_string(),
+            };
+            format!("wrong kind of value: found {found}")
+        }
+        None => first.to_string(),
+    };
+    if doc.is_empty() {
+        text
+    } else {
+        format!("{text}; it takes: {doc}")
+    }
+}
+
+/// `value` written short: as is up to 15 significant digits, in scientific notation beyond.
+pub fn short_number(value: f64) -> String {
+    if value != 0.0 && !(1e-6..1e15).contains(&value.abs()) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
+    }
 }
 
 /// Whether `text` is written as a number: a sign, digits (with `_`), a fraction, an exponent.
@@ -1019,10 +1114,46 @@ mod tests {
             err.to_string(),
             "unknown config key `algo.apo.gama`; did you mean `algo.apo.gamma`?"
         );
+        // type errors in the user's words: what was found, written short, and the key's range
+        let err = build(Algorithm::Apo, "epochs=1e3").unwrap_err().to_string();
+        assert!(
+            err.contains("without a point or exponent, `1000`") && err.contains("1..=1000000000"),
+            "{err}"
+        );
+        let err = build(Algorithm::Apo, "steps_per_epoch=1e308")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("1e308") && err.len() < 300, "{err}");
+        let err = build(Algorithm::Ppo, "algo.clip=\"x\"")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("config key `algo.ppo.clip`") && err.contains("(0, 1)"),
+            "the algorithm's name stays in the key: {err}"
+        );
+        let err = build(Algorithm::Apo, "epochs=010").unwrap_err().to_string();
+        assert!(
+            err.contains("leading zeros") && err.contains("`10`"),
+            "{err}"
+        );
+        // no suggestion from another part of the key than its last
+        let err = build(Algorithm::Ppo, "algo.nosuch=1")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err, "unknown config key `algo.ppo.nosuch`");
+        let file = tempfile::NamedTempFile::new().expect("temp");
+        std::fs::write(file.path(), "[algo.nosuch]\nx = 1\n[algo.ppo]\n").expect("write");
+        let err = RunConfig::build(Algorithm::Ppo, "x", Some(file.path()), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("`nosuch` is not an algorithm") && err.contains("vmpo"),
+            "{err}"
+        );
         let err = build(Algorithm::Apo, "algo.k=\"seven\"").unwrap_err();
         assert!(
             err.to_string()
-                .starts_with("config key `algo.apo.k`: invalid type"),
+                .starts_with("config key `algo.apo.k`: wrong kind of value"),
             "{err}"
         );
         let err = build(Algorithm::Apo, "algo.gamma=1.0").unwrap_err();
