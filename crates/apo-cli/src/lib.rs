@@ -6,6 +6,7 @@ pub mod bench;
 pub mod flags;
 pub mod plot;
 pub mod report;
+pub mod slurm;
 pub mod stats;
 mod stats_plot;
 pub mod summary;

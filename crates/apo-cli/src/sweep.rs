@@ -663,7 +663,7 @@ fn write_config_copy(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
 
 /// Checks `out/sweep.toml` against `spec` (writing it for a new sweep), and the copy of the
 /// config text the runs are made from.
-fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
+pub(crate) fn record(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
     record_spec(out, spec)?;
     write_config_copy(out, spec)
 }
@@ -679,9 +679,7 @@ fn record_spec(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
         );
     }
     if std::fs::symlink_metadata(&path).is_ok() {
-        let old = apo_train::input::read_text(&path, "sweep record", apo_train::input::SMALL_FILE)?;
-        let old: SweepSpec = toml::from_str(&old)
-            .with_context(|| format!("{} is not a sweep record", path.display()))?;
+        let old = read_record(out)?;
         let differ = old.differences(spec);
         if !differ.is_empty() {
             bail!(
@@ -704,8 +702,33 @@ fn record_spec(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
+/// The lock file of a sweep's directory, held while a sweep runs or submits its runs.
+pub const SWEEP_LOCK: &str = "apo-sweep.lock";
+
+/// Locks the sweep's directory `out` (made by [`record`]): a second sweep of it, local or
+/// submitting to Slurm, is refused while this one holds it.
+///
+/// # Errors
+/// Another apo holds it (naming its process).
+pub(crate) fn lock_sweep(out: &Path) -> anyhow::Result<run_dir::RunLock> {
+    run_dir::RunLock::acquire_at(
+        &out.join(SWEEP_LOCK),
+        &format!("sweep directory {}", out.display()),
+    )
+}
+
+/// The sweep recorded in `out/sweep.toml`.
+///
+/// # Errors
+/// No record, or one that cannot be read or parsed, naming the file.
+pub fn read_record(out: &Path) -> anyhow::Result<SweepSpec> {
+    let path = out.join("sweep.toml");
+    let text = apo_train::input::read_text(&path, "sweep record", apo_train::input::SMALL_FILE)?;
+    toml::from_str(&text).with_context(|| format!("{} is not a sweep record", path.display()))
+}
+
 /// The child `apo train` command of `run`, whose directory `dir` has `status`.
-fn command(
+pub(crate) fn command(
     exe: &Path,
     spec: &SweepSpec,
     run: &SweepRun,
@@ -784,26 +807,7 @@ fn run_child(
     cmd.stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
-    #[cfg(unix)]
-    {
-        use std::os::unix::process::CommandExt;
-        cmd.process_group(0);
-    }
-    #[cfg(target_os = "linux")]
-    {
-        use std::os::unix::process::CommandExt;
-        // SAFETY: prctl is async-signal-safe; it only sets this child's parent-death signal.
-        // A sweep killed outright (SIGKILL, OOM) sends its runs SIGTERM: they checkpoint and
-        // stop instead of training on as orphans.
-        unsafe {
-            cmd.pre_exec(|| {
-                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) == -1 {
-                    return Err(std::io::Error::last_os_error());
-                }
-                Ok(())
-            });
-        }
-    }
+    own_process_group(&mut cmd);
     let mut child = cmd.spawn()?;
     lock(running).insert(slot, (child.id(), 0));
     let mut tail: std::collections::VecDeque<String> = std::collections::VecDeque::new();
@@ -821,19 +825,49 @@ fn run_child(
     Ok((status?, Vec::from(tail).join(" | ")))
 }
 
+/// Starts `cmd` in its own process group (a terminal's Ctrl-C reaches the sweep only, which
+/// passes it on) with SIGTERM as its parent-death signal: a sweep killed outright (SIGKILL,
+/// OOM) stops its runs, which checkpoint, instead of leaving them training as orphans.
+pub(crate) fn own_process_group(cmd: &mut Command) {
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        cmd.process_group(0);
+    }
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt;
+        // SAFETY: prctl is async-signal-safe; it only sets this child's parent-death signal
+        unsafe {
+            cmd.pre_exec(|| {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) == -1 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+    }
+}
+
+/// Sends the signal `which` to the child `pid` (one not waited for yet: its pid stays
+/// reserved).
+pub(crate) fn send(pid: u32, which: usize) {
+    #[cfg(unix)]
+    if let (Ok(pid), Ok(sig)) = (i32::try_from(pid), i32::try_from(which)) {
+        // SAFETY: kill(2) with a child's pid, which stays reserved until it is waited for
+        unsafe {
+            libc::kill(pid, sig);
+        }
+    }
+}
+
 /// Sends each running child the signals it has not been sent yet.
 fn forward(signals: &Received, running: &Mutex<BTreeMap<usize, (u32, usize)>>) {
     let count = signals.count.load(Ordering::SeqCst);
     let which = signals.which.load(Ordering::SeqCst);
     for (pid, sent) in lock(running).values_mut() {
         while *sent < count {
-            #[cfg(unix)]
-            if let (Ok(pid), Ok(sig)) = (i32::try_from(*pid), i32::try_from(which)) {
-                // SAFETY: kill(2) with a child's pid, which stays reserved until it is waited for
-                unsafe {
-                    libc::kill(pid, sig);
-                }
-            }
+            send(*pid, which);
             *sent += 1;
         }
     }
@@ -859,6 +893,7 @@ pub fn run(
     tick: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<SweepOutcome> {
     record(&options.out, spec)?;
+    let _lock = lock_sweep(&options.out)?;
     let statuses = runs
         .iter()
         .map(|r| {

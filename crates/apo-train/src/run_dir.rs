@@ -145,13 +145,20 @@ pub fn own_videos(run: &Path) -> anyhow::Result<PathBuf> {
     claim_new(run, &[VIDEOS])?;
     let dir = run.join(VIDEOS);
     let listed = created_entries(run)?.unwrap_or_default();
-    let link = std::fs::symlink_metadata(&dir).is_ok_and(|m| m.file_type().is_symlink());
-    if !listed.contains(VIDEOS) || link {
+    // apo's `videos` is a folder: a link, file or special file there is the user's
+    let kind = crate::atomic::not_plain(&dir)
+        .filter(|k| *k != "a folder")
+        .or_else(|| {
+            std::fs::symlink_metadata(&dir)
+                .is_ok_and(|m| m.is_file())
+                .then_some("a file")
+        });
+    if !listed.contains(VIDEOS) || kind.is_some() {
         bail!(
             "{} exists and was not made by apo{}; apo does not write its videos there: move it away, \
              or give `apo render` another --out",
             dir.display(),
-            if link { " (a symbolic link)" } else { "" }
+            kind.map_or_else(String::new, |k| format!(" ({k})"))
         );
     }
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -442,7 +449,16 @@ pub struct RunLock {
 impl RunLock {
     /// Locks `dir`; fails, naming the other process, when another apo holds it.
     pub fn acquire(dir: &Path) -> anyhow::Result<Self> {
-        let path = dir.join(LOCK);
+        Self::acquire_at(&dir.join(LOCK), &format!("run directory {}", dir.display()))
+    }
+
+    /// Locks the file `path` (made when missing), which stands for `what` in the error when
+    /// another apo holds it (a sweep's directory, …).
+    ///
+    /// # Errors
+    /// Another apo holds the lock (naming its process), or the file cannot be opened or written.
+    pub fn acquire_at(path: &Path, what: &str) -> anyhow::Result<Self> {
+        let path = path.to_path_buf();
         let mut file = open_own(
             OpenOptions::new()
                 .create(true)
@@ -464,8 +480,7 @@ impl RunLock {
                     format!(" ({holder})")
                 };
                 bail!(
-                    "run directory {} is in use by another apo process{who}; wait for it to end or stop it first",
-                    dir.display()
+                    "{what} is in use by another apo process{who}; wait for it to end or stop it first"
                 );
             }
             Err(TryLockError::Error(e)) => {

@@ -8,7 +8,7 @@ use apo_core::Algorithm;
 use apo_train::progress_csv::{self, ProgressRow};
 use apo_train::run_config::RunConfig;
 
-use super::{fails, files_under, ok, path, sweep, text, timeless};
+use super::{apo, fails, files_under, ok, path, sweep, text, timeless};
 
 /// An epoch's row with mean return `mean`, worst `min`, bound `bound` and confidence 0.5.
 fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
@@ -655,4 +655,40 @@ fn a_config_file_edited_during_a_sweep_changes_none_of_its_runs() {
             "seed {seed}: {run_config}"
         );
     }
+}
+
+/// Rule: one sweep at a time in a sweep's directory: a second, started while the first runs,
+/// is refused naming the first's process, and the first finishes untouched.
+#[test]
+fn a_second_sweep_of_a_running_sweeps_directory_is_refused() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let args = [
+        "sweep",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--seeds",
+        "0",
+        "--epochs",
+        "30",
+        "--steps-per-epoch",
+        "400",
+        "--quiet",
+        "--out",
+        path(&out),
+    ];
+    let child = super::spawn(&args);
+    super::wait_for(&out.join("CartPole-v1-ppo-s0").join("progress.csv"));
+    let second = apo(&args);
+    let err = text(&second.stderr);
+    assert!(!second.status.success(), "refused");
+    assert!(
+        err.contains("sweep directory") && err.contains("in use by another apo process"),
+        "{err}"
+    );
+    super::signal(&child, "TERM");
+    let (code, _, stderr) = super::finish(child, 120);
+    assert_eq!(code, Some(143), "the first sweep stops as asked: {stderr}");
 }

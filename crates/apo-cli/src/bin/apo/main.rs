@@ -104,6 +104,10 @@ enum Command {
         after_help = "Example:\n  apo sweep --algo apo,trpo --env Hopper --seeds 0,1,2,3,4 --grid algo.omega1=0.001,0.01 --jobs 2 --out runs/sweep"
     )]
     Sweep(sweep::SweepArgs),
+    /// One array task of a sweep submitted with `apo sweep --launcher slurm` (run by the job's
+    /// script, not by hand): trains its run, passes signals on, requeues on the time-limit warning.
+    #[command(hide = true)]
+    SweepTask(sweep::SweepTaskArgs),
     /// Benchmarks.
     #[command(
         subcommand,
@@ -234,6 +238,7 @@ fn main() -> ExitCode {
         Command::Plot(args) => done(plot::run(&args)),
         Command::Bench(command) => done(bench::run(command)),
         Command::Sweep(args) => sweep::run(args),
+        Command::SweepTask(args) => sweep::task(&args),
         Command::Theory(args) => done(apo_cli::theory::run(&args)),
         Command::Report(args) => done(report::run(&args)),
         Command::Summary(args) => done(summary::run(&args)),

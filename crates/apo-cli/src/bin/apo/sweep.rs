@@ -3,7 +3,8 @@
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use anyhow::Context;
 use apo_cli::sweep;
@@ -16,10 +17,10 @@ use crate::signals::{interrupted_status, SweepSignals};
 #[derive(clap::Args)]
 pub struct SweepArgs {
     /// Algorithms, comma-separated (e.g. apo,trpo); each once.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(long, value_delimiter = ',', required_unless_present = "status")]
     algo: Vec<String>,
     /// Environments, comma-separated; each once.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(long, value_delimiter = ',', required_unless_present = "status")]
     env: Vec<String>,
     /// Seeds: a list (0,1,2) or a range (0..5, end excluded); each once.
     #[arg(long, default_value = "0..3")]
@@ -48,12 +49,31 @@ pub struct SweepArgs {
     /// Override a config key in every run (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
-    /// Runs at once; 1..=256.
-    #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<usize>(1, 256))]
-    jobs: usize,
-    /// Threads of each run (0: the cores available divided by --jobs); 0..=1024.
+    /// Runs at once [default: 1; with --launcher slurm: as many as Slurm allows]; 1..=10000.
+    #[arg(long, value_parser = apo_cli::flags::count::<usize>(1, 10_000))]
+    jobs: Option<usize>,
+    /// Threads of each run (0: the cores available divided by --jobs; with --launcher slurm:
+    /// 1), also each Slurm task's --cpus-per-task; 0..=1024.
     #[arg(long, default_value_t = 0, value_parser = apo_cli::flags::count::<usize>(0, 1024))]
     threads: usize,
+    /// Where the runs run: `local` (children of this command, --jobs at once) or `slurm` (one
+    /// job array submitted with sbatch, one task per run not finished, queued or running;
+    /// the command returns once it is submitted: docs/cluster.md).
+    #[arg(long, value_enum, default_value_t = Launcher::Local)]
+    launcher: Launcher,
+    /// An sbatch option for --launcher slurm, e.g. --sbatch=--partition=gpu
+    /// --sbatch=--time=04:00:00 (repeatable; given after apo's own, so it wins).
+    #[arg(long = "sbatch", value_name = "OPTION", allow_hyphen_values = true)]
+    sbatch: Vec<String>,
+    /// With --launcher slurm: seconds before a task's time limit at which Slurm warns it
+    /// (SIGUSR1): its run checkpoints and the task requeues itself; 10..=86400.
+    #[arg(long, default_value_t = 300, value_parser = apo_cli::flags::count::<u64>(10, 86_400))]
+    slurm_warn: u64,
+    /// Print where each run of the sweep in --out stands (finished, running, queued,
+    /// interrupted, failed with its reason, not started) and what a new submission would
+    /// launch; the runs are the ones the sweep recorded (sweep.toml), their target --epochs.
+    #[arg(long, conflicts_with_all = ["grid", "sets", "config", "preset", "steps_per_epoch", "seeds", "sbatch"])]
+    status: bool,
     /// Metric that ranks the cells.
     #[arg(long, value_enum, default_value_t = sweep::Metric::WorstLast)]
     metric: sweep::Metric,
@@ -68,7 +88,104 @@ pub struct SweepArgs {
     quiet: bool,
 }
 
+/// Where a sweep's runs run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Launcher {
+    /// Children of `apo sweep` on this machine.
+    Local,
+    /// A Slurm job array.
+    Slurm,
+}
+
+#[derive(clap::Args)]
+pub struct SweepTaskArgs {
+    /// The sweep's directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// The run this task trains.
+    #[arg(long)]
+    run: String,
+    /// Its epoch target; 1..=1000000000.
+    #[arg(long, value_parser = apo_cli::flags::count::<u64>(1, apo_train::config::MAX_EPOCHS as u64))]
+    epochs: u64,
+    /// Its threads; 1..=1024.
+    #[arg(long, value_parser = apo_cli::flags::count::<usize>(1, 1024))]
+    threads: usize,
+}
+
+/// `apo sweep-task`: one array task of a Slurm sweep.
+pub fn task(args: &SweepTaskArgs) -> anyhow::Result<ExitCode> {
+    let signals = SweepSignals::install()?;
+    let warned = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGUSR1, Arc::clone(&warned))
+        .context("installing the SIGUSR1 handler")?;
+    let exe = std::env::current_exe().context("locating the apo executable")?;
+    let end = apo_cli::slurm::task(
+        &exe,
+        &args.out,
+        &args.run,
+        args.epochs as usize,
+        args.threads,
+        &signals.received,
+        &warned,
+    )?;
+    Ok(match end.status {
+        None => ExitCode::SUCCESS,
+        Some(_) if end.requeued => ExitCode::SUCCESS,
+        Some(status) => match status.code() {
+            Some(0) => ExitCode::SUCCESS,
+            Some(code) => ExitCode::from(u8::try_from(code).unwrap_or(1)),
+            None => ExitCode::FAILURE,
+        },
+    })
+}
+
+/// `apo sweep --status`: where each run of the sweep in `--out` stands.
+fn status(args: &SweepArgs) -> anyhow::Result<ExitCode> {
+    let spec = sweep::read_record(&args.out)?;
+    let epochs = args.epochs as usize;
+    let runs = sweep::expand(&spec, epochs, args.max_runs)?;
+    let standings = apo_cli::slurm::standings(&args.out, &runs, epochs)?;
+    let width = standings.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
+    let mut launch = Vec::new();
+    for (name, standing) in &standings {
+        use apo_cli::slurm::Standing as S;
+        let said = match standing {
+            S::Finished => format!("finished ({epochs} epochs)"),
+            S::Running { id } => format!("running (task {id})"),
+            S::Queued { id, reason } if reason == "None" || reason.is_empty() => {
+                format!("queued (task {id})")
+            }
+            S::Queued { id, reason } => format!("queued (task {id}, {reason})"),
+            S::Interrupted { done } => format!("interrupted at epoch {done} of {epochs}"),
+            S::Failed { reason } => format!("failed: {reason}"),
+            S::New => "not started".to_string(),
+            S::Blocked { reason } => format!("blocked: {reason}"),
+        };
+        if standing.would_launch() {
+            launch.push(name.as_str());
+        }
+        apo_cli::outln!("{name:<width$}  {said}")?;
+    }
+    if launch.is_empty() {
+        apo_cli::outln!("a new submission would launch nothing")?;
+    } else {
+        apo_cli::outln!(
+            "a new submission would launch {} run(s): {}",
+            launch.len(),
+            launch.join(", ")
+        )?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
+    if args.status {
+        return status(&args);
+    }
+    if args.launcher == Launcher::Local && !args.sbatch.is_empty() {
+        anyhow::bail!("--sbatch is for --launcher slurm");
+    }
     let spec = sweep::SweepSpec {
         envs: args.env.clone(),
         algos: args.algo.clone(),
@@ -93,17 +210,51 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
     let epochs = args.epochs as usize;
     let runs = sweep::expand(&spec, epochs, args.max_runs)?;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let jobs = args.jobs.unwrap_or(1);
     let options = sweep::SweepOptions {
         out: args.out.clone(),
         epochs,
-        jobs: args.jobs,
-        threads: if args.threads == 0 {
-            (cores / args.jobs).max(1)
-        } else {
-            args.threads
+        jobs,
+        threads: match (args.threads, args.launcher) {
+            (0, Launcher::Slurm) => 1,
+            (0, Launcher::Local) => (cores / jobs).max(1),
+            (threads, _) => threads,
         },
     };
     let exe = std::env::current_exe().context("locating the apo executable")?;
+    if args.launcher == Launcher::Slurm {
+        let slurm = apo_cli::slurm::SlurmOptions {
+            sbatch: args.sbatch.clone(),
+            warn_s: args.slurm_warn,
+            limit: args.jobs,
+        };
+        let outcome = apo_cli::slurm::submit(&exe, &spec, &runs, &options, &slurm)?;
+        apo_cli::outln!(
+            "sweep: {} runs in {}: {} finished, {} queued or running",
+            runs.len(),
+            args.out.display(),
+            outcome.finished,
+            outcome.in_queue
+        )?;
+        match &outcome.job {
+            Some(job) => apo_cli::outln!(
+                "submitted job {job}: {} run(s), one array task each; follow it with `squeue -j {job}` and \
+                 `apo sweep --status --out {}`; run this command again to resubmit what is unfinished",
+                outcome.submitted.len(),
+                args.out.display()
+            )?,
+            None => apo_cli::outln!("nothing to submit")?,
+        }
+        if outcome.job.is_some() || outcome.in_queue > 0 {
+            return Ok(ExitCode::SUCCESS);
+        }
+        // every run finished: the cells, as a local sweep ends
+        let all_finished = sweep::SweepOutcome {
+            skipped: outcome.finished,
+            ..Default::default()
+        };
+        return cells(&args, &runs, epochs, &all_finished).map(|()| ExitCode::SUCCESS);
+    }
     let signals = SweepSignals::install()?;
     let total = (runs.len() as u64).saturating_mul(args.epochs);
     let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
@@ -135,7 +286,30 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
     if let Some(bar) = &bar {
         bar.abandon();
     }
-    let results = sweep::cell_results(&args.out, &runs, epochs, args.metric, args.last as usize);
+    cells(&args, &runs, epochs, &outcome)?;
+    if outcome.interrupted {
+        apo_cli::outln!(
+            "interrupted: every running run was checkpointed; run the same command again to resume"
+        )?;
+        return Ok(ExitCode::from(interrupted_status(
+            signals.received.which.load(Ordering::SeqCst),
+        )));
+    }
+    Ok(if outcome.failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
+/// Writes `cells.csv` and prints each cell's metric over its seeds, then what `outcome` did.
+fn cells(
+    args: &SweepArgs,
+    runs: &[sweep::SweepRun],
+    epochs: usize,
+    outcome: &sweep::SweepOutcome,
+) -> anyhow::Result<()> {
+    let results = sweep::cell_results(&args.out, runs, epochs, args.metric, args.last as usize);
     let csv = sweep::cells_csv(&results);
     let csv_path = args.out.join("cells.csv");
     apo_train::atomic::write(&csv_path, csv.as_bytes())
@@ -192,17 +366,5 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
     for (name, error) in &outcome.failed {
         apo_train::warnln!("failed: {name}: {error}");
     }
-    if outcome.interrupted {
-        apo_cli::outln!(
-            "interrupted: every running run was checkpointed; run the same command again to resume"
-        )?;
-        return Ok(ExitCode::from(interrupted_status(
-            signals.received.which.load(Ordering::SeqCst),
-        )));
-    }
-    Ok(if outcome.failed.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
-    })
+    Ok(())
 }

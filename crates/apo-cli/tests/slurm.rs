@@ -1,0 +1,354 @@
+//! `apo sweep --launcher slurm` on a real single-node Slurm (Debian's slurm-wlm and munge,
+//! started by `bash scripts/slurm-local.sh start`; `scripts/test.sh` starts one, runs these
+//! with `--ignored` and stops it):
+//!
+//! * a sweep submitted as a job array finishes, `--status` says so, and a second submission
+//!   launches nothing;
+//! * a task cancelled mid-run (`scancel --batch --signal=TERM`) leaves its run at a checkpoint,
+//!   `--status` says it is interrupted, and the next submission resumes it to a
+//!   `progress.csv` equal to the uninterrupted run's;
+//! * the time-limit warning (`SIGUSR1`) makes the task checkpoint and requeue itself, and the
+//!   requeued task finishes the run exactly;
+//! * `srun --mpi=pmix -n 2 apo train` equals `mpirun -n 2 apo train` (the `mpi` feature);
+//! * no Slurm on PATH and options sbatch refuses are errors before anything is created.
+#![cfg(unix)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+use apo_train::progress_csv::{self, ProgressRow};
+
+fn apo_exe() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_apo"))
+}
+
+fn apo(args: &[&str]) -> Output {
+    Command::new(apo_exe())
+        .args(args)
+        .output()
+        .expect("apo runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = apo(args);
+    assert!(
+        out.status.success(),
+        "apo {args:?} failed:\n{}\n{}",
+        text(&out.stdout),
+        text(&out.stderr)
+    );
+    text(&out.stdout)
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+fn timeless(dir: &Path) -> Vec<ProgressRow> {
+    progress_csv::read(&dir.join("progress.csv"))
+        .expect("progress.csv")
+        .into_iter()
+        .map(ProgressRow::timeless)
+        .collect()
+}
+
+/// The job id in `apo sweep --launcher slurm`'s "submitted job <id>: …" line.
+fn submitted_job(stdout: &str) -> String {
+    stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("submitted job "))
+        .and_then(|l| l.split(':').next())
+        .unwrap_or_else(|| panic!("no job submitted: {stdout}"))
+        .to_string()
+}
+
+/// The states of the job's tasks that squeue still shows.
+fn states(job: &str) -> Vec<String> {
+    let out = Command::new("squeue")
+        .args(["--noheader", "--array", "--states=all", "--format=%T"])
+        .arg(format!("--jobs={job}"))
+        .output()
+        .expect("squeue runs");
+    text(&out.stdout)
+        .lines()
+        .map(|l| l.trim().to_string())
+        .collect()
+}
+
+/// Waits until no task of `job` is queued, running or completing (at most `secs`).
+fn wait_job(job: &str, secs: u64) {
+    let start = Instant::now();
+    let done = |s: &String| {
+        matches!(
+            s.as_str(),
+            "COMPLETED" | "FAILED" | "CANCELLED" | "TIMEOUT" | "NODE_FAIL" | "OUT_OF_MEMORY"
+        )
+    };
+    loop {
+        let now = states(job);
+        if now.iter().all(done) {
+            return;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(secs),
+            "job {job} still at {now:?} after {secs} s"
+        );
+        std::thread::sleep(Duration::from_millis(500));
+    }
+}
+
+/// Waits until `file` has at least `rows` data rows.
+fn wait_rows(file: &Path, rows: usize, secs: u64) {
+    let start = Instant::now();
+    while std::fs::read_to_string(file).map_or(0, |t| t.lines().count().saturating_sub(1)) < rows {
+        assert!(
+            start.elapsed() < Duration::from_secs(secs),
+            "{} has fewer than {rows} rows after {secs} s",
+            file.display()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+fn sweep_args<'a>(out: &'a Path, seeds: &'a str, epochs: &'a str, steps: &'a str) -> Vec<&'a str> {
+    vec![
+        "sweep",
+        "--launcher",
+        "slurm",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--seeds",
+        seeds,
+        "--epochs",
+        epochs,
+        "--steps-per-epoch",
+        steps,
+        "--quiet",
+        "--out",
+        path(out),
+    ]
+}
+
+/// The run trained the way the sweep's task trains it, without Slurm.
+fn reference(dir: &Path, seed: &str, epochs: &str, steps: &str) -> Vec<ProgressRow> {
+    ok(&[
+        "train",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--seed",
+        seed,
+        "--epochs",
+        epochs,
+        "--steps-per-epoch",
+        steps,
+        "--threads",
+        "1",
+        "--quiet",
+        "--out",
+        path(dir),
+    ]);
+    timeless(dir)
+}
+
+#[test]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+fn a_sweep_finishes_through_slurm_and_a_second_submission_launches_nothing() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let args = sweep_args(&out, "0..2", "3", "600");
+    let job = submitted_job(&ok(&args));
+    let status = ok(&["sweep", "--status", "--out", path(&out), "--epochs", "3"]);
+    assert!(
+        status.contains("queued") || status.contains("running") || status.contains("finished"),
+        "{status}"
+    );
+    wait_job(&job, 300);
+    let status = ok(&["sweep", "--status", "--out", path(&out), "--epochs", "3"]);
+    assert_eq!(status.matches("finished (3 epochs)").count(), 2, "{status}");
+    assert!(status.contains("would launch nothing"), "{status}");
+    let record = std::fs::read(out.join("slurm/submissions.csv")).expect("record");
+    let again = ok(&args);
+    assert!(again.contains("nothing to submit"), "{again}");
+    assert!(again.contains("2 finished"), "{again}");
+    assert!(
+        out.join("cells.csv").exists(),
+        "the cells of a finished sweep"
+    );
+    assert_eq!(
+        std::fs::read(out.join("slurm/submissions.csv")).expect("record"),
+        record,
+        "nothing submitted the second time"
+    );
+    // the runs are those a local training makes
+    let whole = reference(&tmp.path().join("reference"), "1", "3", "600");
+    assert_eq!(timeless(&out.join("CartPole-v1-ppo-s1")), whole);
+}
+
+#[test]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+fn a_cancelled_task_is_resumed_exactly_by_the_next_submission() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let (epochs, steps) = ("16", "1000");
+    let args = sweep_args(&out, "0", epochs, steps);
+    let job = submitted_job(&ok(&args));
+    let run = out.join("CartPole-v1-ppo-s0");
+    wait_rows(&run.join("progress.csv"), 2, 240);
+    let cancelled = Command::new("scancel")
+        .args(["--batch", "--signal=TERM", &format!("{job}_0")])
+        .status()
+        .expect("scancel runs");
+    assert!(cancelled.success());
+    wait_job(&job, 120);
+    let status = ok(&["sweep", "--status", "--out", path(&out), "--epochs", epochs]);
+    assert!(status.contains("interrupted at epoch"), "{status}");
+    assert!(status.contains("would launch 1 run"), "{status}");
+    let done_before = timeless(&run).len();
+    assert!(done_before < 16, "stopped mid-way: {done_before} epochs");
+    let resumed = submitted_job(&ok(&args));
+    assert_ne!(resumed, job);
+    wait_job(&resumed, 300);
+    let whole = reference(&tmp.path().join("reference"), "0", epochs, steps);
+    assert_eq!(
+        timeless(&run),
+        whole,
+        "the resumed run equals the uninterrupted one"
+    );
+}
+
+#[test]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+fn the_time_limit_warning_checkpoints_and_requeues_the_task() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let (epochs, steps) = ("16", "1000");
+    let args = sweep_args(&out, "0", epochs, steps);
+    let job = submitted_job(&ok(&args));
+    let run = out.join("CartPole-v1-ppo-s0");
+    wait_rows(&run.join("progress.csv"), 2, 240);
+    // what Slurm sends --slurm-warn seconds before the time limit
+    let warned = Command::new("scancel")
+        .args(["--batch", "--signal=USR1", &format!("{job}_0")])
+        .status()
+        .expect("scancel runs");
+    assert!(warned.success());
+    wait_job(&job, 400);
+    let log = std::fs::read_to_string(out.join(format!("slurm/{job}_0.out"))).expect("task output");
+    assert!(log.contains("requeued"), "{log}");
+    let whole = reference(&tmp.path().join("reference"), "0", epochs, steps);
+    assert_eq!(
+        timeless(&run),
+        whole,
+        "the requeued run equals the uninterrupted one"
+    );
+}
+
+#[test]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+fn bad_input_is_refused_before_anything_is_created() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    // no Slurm on PATH
+    let out = tmp.path().join("no-slurm");
+    let empty = tmp.path().join("empty-bin");
+    std::fs::create_dir(&empty).expect("dir");
+    let refused = Command::new(apo_exe())
+        .args(sweep_args(&out, "0", "1", "200"))
+        .env("PATH", &empty)
+        .output()
+        .expect("apo runs");
+    assert!(!refused.status.success());
+    let err = text(&refused.stderr);
+    assert!(
+        err.contains("sbatch") && err.contains("slurm-local.sh"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing created");
+    // a partition that does not exist, and an option sbatch does not know
+    for (option, said) in [
+        ("--sbatch=--partition=nosuch", "partition"),
+        ("--sbatch=--no-such-option", "no-such-option"),
+    ] {
+        let out = tmp.path().join("bad-option");
+        let mut args = sweep_args(&out, "0", "1", "200");
+        args.push(option);
+        let refused = apo(&args);
+        assert!(!refused.status.success(), "{option}");
+        let err = text(&refused.stderr);
+        assert!(
+            err.contains("sbatch") && err.contains(said),
+            "{option}: {err}"
+        );
+        assert!(!out.exists(), "{option}: nothing created");
+    }
+}
+
+#[cfg(feature = "mpi")]
+#[test]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+fn srun_two_ranks_train_as_mpirun_does() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let train = |dir: &Path| -> Vec<String> {
+        [
+            "train",
+            "--algo",
+            "apo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "3",
+            "--steps-per-epoch",
+            "800",
+            "--threads",
+            "1",
+            "--quiet",
+            "--out",
+            path(dir),
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    };
+    let by_srun = tmp.path().join("srun");
+    let out = Command::new("srun")
+        .args(["--mpi=pmix", "-n", "2", "--cpus-per-task=1"])
+        .arg(apo_exe())
+        .args(train(&by_srun))
+        .output()
+        .expect("srun runs");
+    assert!(
+        out.status.success(),
+        "srun: {}\n{}",
+        text(&out.stdout),
+        text(&out.stderr)
+    );
+    let by_mpirun = tmp.path().join("mpirun");
+    let out = Command::new("mpirun")
+        .args(["--allow-run-as-root", "--oversubscribe", "-n", "2"])
+        .arg(apo_exe())
+        .args(train(&by_mpirun))
+        .output()
+        .expect("mpirun runs");
+    assert!(out.status.success(), "mpirun: {}", text(&out.stderr));
+    let config = std::fs::read_to_string(by_srun.join("config.toml")).expect("config");
+    assert_eq!(
+        config,
+        std::fs::read_to_string(by_mpirun.join("config.toml")).expect("config")
+    );
+    assert_eq!(timeless(&by_srun), timeless(&by_mpirun));
+    // two ranks, not one: the checkpoint records them
+    let state =
+        std::fs::read_to_string(by_srun.join("checkpoints/latest/state.json")).expect("state");
+    assert!(
+        state.contains("\"ranks\":2") || state.contains("\"ranks\": 2"),
+        "{state}"
+    );
+}
