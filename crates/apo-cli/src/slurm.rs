@@ -275,8 +275,62 @@ pub fn job_script(
     script
 }
 
+/// The sbatch options apo sets itself, because the sweep depends on them: the long name, the
+/// short one, and what to use instead.
+const OWN_OPTIONS: [(&str, &str, &str); 8] = [
+    (
+        "--array",
+        "-a",
+        "one task per unfinished run; --jobs N caps the tasks at once",
+    ),
+    ("--wrap", "", "the job script runs the sweep's tasks"),
+    (
+        "--output",
+        "-o",
+        "each task's output is <out>/slurm/<job>_<task>.out, which --status reads",
+    ),
+    (
+        "--error",
+        "-e",
+        "each task's output is <out>/slurm/<job>_<task>.out, which --status reads",
+    ),
+    ("--open-mode", "", "a requeued task appends to its output"),
+    (
+        "--signal",
+        "",
+        "--slurm-warn sets the warning before the time limit",
+    ),
+    (
+        "--cpus-per-task",
+        "-c",
+        "--threads sets each task's CPUs and its run's threads",
+    ),
+    ("--parsable", "", "apo reads the job id"),
+];
+
+/// Refuses the sbatch options that would break the sweep's job (apo sets them itself: the
+/// array, the script, the output files, the warning signal, the CPUs) and empty ones.
+///
+/// # Errors
+/// Naming the option and what to use instead.
+pub fn check_sbatch_options(options: &[String]) -> anyhow::Result<()> {
+    for option in options {
+        if option.trim().is_empty() {
+            bail!("--sbatch is empty: give an sbatch option, e.g. --sbatch=--partition=cpu");
+        }
+        let name = option.split('=').next().unwrap_or(option);
+        for (long, short, instead) in OWN_OPTIONS {
+            let is_short = !short.is_empty() && option.starts_with(short);
+            if name == long || is_short {
+                bail!("--sbatch={option}: apo sets {long} itself ({instead}); leave it out");
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Runs `sbatch --parsable <args>` with `script` on its standard input; its output.
-fn sbatch(args: &[String], script: &str) -> anyhow::Result<String> {
+fn sbatch(args: &[String], script: &str, asked: &str) -> anyhow::Result<String> {
     let mut child = Command::new("sbatch")
         .arg("--parsable")
         .args(args)
@@ -286,9 +340,9 @@ fn sbatch(args: &[String], script: &str) -> anyhow::Result<String> {
         .spawn()
         .context("running sbatch")?;
     if let Some(mut stdin) = child.stdin.take() {
-        stdin
-            .write_all(script.as_bytes())
-            .context("passing the job script to sbatch")?;
+        // sbatch may refuse its options and exit before it reads the script: its own message
+        // and status below say why, not the broken pipe
+        let _ = stdin.write_all(script.as_bytes());
     }
     let output = child.wait_with_output().context("running sbatch")?;
     let said = format!(
@@ -298,10 +352,14 @@ fn sbatch(args: &[String], script: &str) -> anyhow::Result<String> {
     );
     if !output.status.success() {
         bail!(
-            "sbatch {} refused the job ({}): {}",
-            args.join(" "),
+            "sbatch refused the job ({}): {}. apo asked for {asked}; your options: {}",
             output.status,
-            said.trim()
+            said.trim(),
+            if args.is_empty() {
+                "none".to_string()
+            } else {
+                args.join(" ")
+            }
         );
     }
     Ok(said)
@@ -335,6 +393,7 @@ pub fn submit(
     options: &SweepOptions,
     slurm: &SlurmOptions,
 ) -> anyhow::Result<SubmitOutcome> {
+    check_sbatch_options(&slurm.sbatch)?;
     check_slurm()?;
     let out = std::path::absolute(&options.out)
         .with_context(|| format!("the absolute path of {}", options.out.display()))?;
@@ -362,10 +421,18 @@ pub fn submit(
     if names.is_empty() {
         return Ok(outcome);
     }
+    let asked = |n: usize| {
+        format!(
+            "--array=0-{} (one task per run), --cpus-per-task={} (--threads), --signal=B:USR1@{} (--slurm-warn)",
+            n.saturating_sub(1),
+            options.threads,
+            slurm.warn_s
+        )
+    };
     let script = job_script(&exe, &out, &names, options.epochs, options.threads, slurm);
     let mut test = vec!["--test-only".to_string()];
     test.extend(slurm.sbatch.iter().cloned());
-    sbatch(&test, &script)?;
+    sbatch(&test, &script, &asked(names.len()))?;
     sweep::record(&out, spec)?;
     let _lock = sweep::lock_sweep(&out)?;
     // what another submission may have launched since the check above
@@ -380,7 +447,7 @@ pub fn submit(
     let folder = out.join(FOLDER);
     std::fs::create_dir_all(&folder)
         .with_context(|| format!("cannot create {}", folder.display()))?;
-    let said = sbatch(&slurm.sbatch, &script)?;
+    let said = sbatch(&slurm.sbatch, &script, &asked(names.len()))?;
     let job = said
         .lines()
         .next()
@@ -481,21 +548,48 @@ pub fn standings(
                 reason: e.reason.clone(),
             },
             Some(e) if e.active() => Standing::Running { id: e.id.clone() },
-            _ => match sweep::check_own(&dir, run).and_then(|()| sweep::status(&dir, epochs)) {
-                Err(e) => Standing::Blocked {
-                    reason: format!("{e:#}"),
-                },
-                Ok(RunStatus::Finished) => Standing::Finished,
-                Ok(RunStatus::Interrupted { done }) => Standing::Interrupted { done },
-                Ok(RunStatus::New) => Standing::New,
-                Ok(RunStatus::Failed) => Standing::Failed {
-                    reason: failure(out, &dir, submitted.get(&run.name), entry),
-                },
-            },
+            _ => {
+                let submission = submitted.get(&run.name);
+                // the latest task ended on an error (not on a stop signal, which checkpoints)
+                let error = submission.and_then(|s| task_error(out, s));
+                match sweep::check_own(&dir, run).and_then(|()| sweep::status(&dir, epochs)) {
+                    Err(e) => Standing::Blocked {
+                        reason: format!("{e:#}"),
+                    },
+                    Ok(RunStatus::Finished) => Standing::Finished,
+                    Ok(RunStatus::Interrupted { .. } | RunStatus::New) if error.is_some() => {
+                        Standing::Failed {
+                            reason: failure(out, &dir, submission, entry),
+                        }
+                    }
+                    Ok(RunStatus::Interrupted { done }) => Standing::Interrupted { done },
+                    Ok(RunStatus::New) => Standing::New,
+                    Ok(RunStatus::Failed) => Standing::Failed {
+                        reason: failure(out, &dir, submission, entry),
+                    },
+                }
+            }
         };
         found.push((run.name.clone(), standing));
     }
     Ok(found)
+}
+
+/// The error the task of `submission` ended on: the last `error:` line of its output when no
+/// line after it says the run was stopped by a signal (and checkpointed); `None` otherwise.
+fn task_error(out: &Path, submission: &Submission) -> Option<String> {
+    let path = out
+        .join(FOLDER)
+        .join(format!("{}_{}.out", submission.job, submission.task));
+    let text = apo_train::input::read_text(&path, "a task's output", 64 << 20).ok()?;
+    let lines: Vec<&str> = text.lines().collect();
+    let error = lines.iter().rposition(|l| l.starts_with("error:"))?;
+    let stopped = lines
+        .iter()
+        .rposition(|l| l.starts_with("interrupted by SIG") || l.contains("requeued as job"));
+    stopped
+        .is_none_or(|s| s < error)
+        .then(|| lines[error].trim().to_string())
 }
 
 /// Why the run in `dir` failed, as far as its records say: Slurm's final state of its task,
@@ -521,8 +615,7 @@ fn failure(
             })
     };
     if let Some(line) = submission
-        .map(|s| out.join(FOLDER).join(format!("{}_{}.out", s.job, s.task)))
-        .and_then(|p| last_error(&p))
+        .and_then(|s| task_error(out, s))
         .or_else(|| last_error(&dir.join(run_dir::LOG)))
     {
         why.push(line);

@@ -540,8 +540,25 @@ pub fn check_own(dir: &Path, run: &SweepRun) -> anyhow::Result<()> {
             dir.display()
         );
     }
+    match std::fs::symlink_metadata(dir) {
+        Err(_) => return Ok(()),
+        Ok(meta) if !meta.is_dir() => bail!(
+            "{} is a file, not a run of the sweep; the sweep stops and touches nothing (move it away)",
+            dir.display()
+        ),
+        Ok(_) => {}
+    }
     let config = dir.join(run_dir::CONFIG);
     if std::fs::symlink_metadata(&config).is_err() {
+        // a folder of the user's at the run's place (apo made neither its marker nor a run)
+        let empty = std::fs::read_dir(dir).is_ok_and(|mut e| e.next().is_none());
+        if !empty && run_dir::created_entries(dir)?.is_none() {
+            bail!(
+                "{} holds files apo did not make and no run; the sweep stops and touches nothing \
+                 (move the folder away, or use a new --out)",
+                dir.display()
+            );
+        }
         return Ok(());
     }
     let found = RunConfig::load(&config)

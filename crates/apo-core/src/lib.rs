@@ -147,4 +147,5 @@ pub use tensor_batch::TensorBatch;
 pub use trust_region::{
     Acceptance, LineSearchOutcome, Rejections, TrustRegionConfig, TrustRegionReport,
 };
+pub use validate::shown;
 pub use value::{ValueConfig, ValueNet};

@@ -32,7 +32,13 @@ impl ConfigError {
     /// The error of `field` = `value` breaking `rule` (`"must be ≥ 0"`); a non-finite value
     /// breaks every range, and the rule then says so first (`"must be finite and ≥ 0"`).
     pub fn new(field: &str, value: impl fmt::Display, rule: &str) -> Self {
-        let value = value.to_string();
+        let mut value = value.to_string();
+        // a number of 300 digits (1e308 as f64 prints it) is written as a user reads it
+        if value.len() > 24 {
+            if let Ok(x) = value.parse::<f64>() {
+                value = shown(x);
+            }
+        }
         let rule = match (value.as_str(), rule.strip_prefix("must be ")) {
             ("inf" | "-inf" | "NaN", Some(rest)) => format!("must be finite and {rest}"),
             ("inf" | "-inf" | "NaN", None) => format!("must be finite; {rule}"),
@@ -46,9 +52,8 @@ impl ConfigError {
     }
 }
 
-/// Whether `x` is finite and ≥ 0.
 /// `x` as a user reads it: scientific notation when it is very large or very small.
-pub(crate) fn shown(x: f64) -> String {
+pub fn shown(x: f64) -> String {
     if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
         format!("{x:e}")
     } else {
@@ -56,6 +61,7 @@ pub(crate) fn shown(x: f64) -> String {
     }
 }
 
+/// Whether `x` is finite and ≥ 0.
 pub(crate) fn finite_nonneg(x: f64) -> bool {
     x.is_finite() && x >= 0.0
 }

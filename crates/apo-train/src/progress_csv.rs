@@ -217,8 +217,8 @@ pub fn write(path: &Path, rows: &[ProgressRow]) -> anyhow::Result<()> {
     let bytes = writer
         .into_inner()
         .map_err(|e| anyhow::anyhow!("csv: {e}"))?;
-    crate::atomic::write(path, &bytes)?;
-    Ok(())
+    crate::atomic::write(path, &bytes)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
 }
 
 #[cfg(test)]

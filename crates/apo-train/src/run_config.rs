@@ -669,7 +669,12 @@ fn unknown(key: &str, doc_keys: &[String]) -> ConfigFileError {
         })
         .filter(|(score, _)| *score > 0.8)
         .max_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, k)| k.to_string());
+        .map(|(_, k)| k.to_string())
+        // a setting of the algorithm given without its section (`gamma` for `algo.ppo.gamma`)
+        .or_else(|| {
+            let in_section = format!("algo.{}.{key}", chosen?.name());
+            doc_keys.contains(&in_section).then_some(in_section)
+        });
     ConfigFileError::UnknownKey {
         key: key.to_string(),
         suggestion,
@@ -950,10 +955,11 @@ pub fn parse_value(text: &str) -> Result<toml::Value, String> {
 /// never 309 digits), then what the key takes (`doc`, its meaning and range).
 fn explain_type_error(message: &str, doc: &str) -> String {
     let first = message.lines().next().unwrap_or(message);
-    let text = match first
-        .strip_prefix("invalid type: ")
-        .and_then(|m| m.split_once(", expected "))
-    {
+    let (what, rest) = match first.strip_prefix("invalid value: ") {
+        Some(rest) => ("out of range", Some(rest)),
+        None => ("wrong kind of value", first.strip_prefix("invalid type: ")),
+    };
+    let text = match rest.and_then(|m| m.split_once(", expected ")) {
         Some((found, _)) => {
             let quoted = found
                 .split_once('`')
@@ -964,10 +970,10 @@ fn explain_type_error(message: &str, doc: &str) -> String {
                     // an integer key given `1e3` or `3.0`
                     Ok(f) if f.fract() == 0.0 && f.abs() < 1e15 => format!(
                         "the decimal number {}, where a whole number is written without a point or exponent, `{}`",
-                        short_number(f),
+                        apo_core::shown(f),
                         f as i64
                     ),
-                    Ok(f) => format!("the decimal number {}", short_number(f)),
+                    Ok(f) => format!("the decimal number {}", apo_core::shown(f)),
                     Err(_) => "a decimal number".to_string(),
                 },
                 (Some("integer"), Some(v)) => format!("the whole number {v}"),
@@ -976,7 +982,7 @@ fn explain_type_error(message: &str, doc: &str) -> String {
                 _ if found.starts_with("unit") => "a value of another kind".to_string(),
                 _ => found.to_string(),
             };
-            format!("wrong kind of value: found {found}")
+            format!("{what}: found {found}")
         }
         None => first.to_string(),
     };
@@ -984,15 +990,6 @@ fn explain_type_error(message: &str, doc: &str) -> String {
         text
     } else {
         format!("{text}; it takes: {doc}")
-    }
-}
-
-/// `value` written short: as is up to 15 significant digits, in scientific notation beyond.
-pub fn short_number(value: f64) -> String {
-    if value != 0.0 && !(1e-6..1e15).contains(&value.abs()) {
-        format!("{value:e}")
-    } else {
-        format!("{value}")
     }
 }
 
@@ -1365,7 +1362,7 @@ mod tests {
             RunConfig::build(Algorithm::Apo, "x", None, &["init_log_std=1e30".into()]).unwrap_err();
         assert!(
             err.to_string()
-                .contains("`init_log_std` = 1000000000000000000000000000000"),
+                .contains("`init_log_std` = 1e30"),
             "{err}"
         );
         let action = ActionKind::Continuous { dim: 3 };

@@ -589,6 +589,29 @@ fn a_sweep_refuses_a_link_or_a_foreign_run_in_its_place() {
         1,
         "the foreign run is not continued"
     );
+    // a folder or a file of the user's at a run's place: named, with what to do, untouched
+    std::fs::remove_dir_all(&place).expect("rm");
+    for folder in [true, false] {
+        if folder {
+            std::fs::create_dir(&place).expect("user folder");
+            std::fs::write(place.join("notes.txt"), b"mine").expect("user file");
+        } else {
+            std::fs::write(&place, b"mine").expect("user file");
+        }
+        let again = sweep(&out, "2", &[]);
+        let err = text(&again.stderr);
+        assert_eq!(again.status.code(), Some(1), "{err}");
+        assert!(err.contains("move") && !err.contains("--force"), "{err}");
+        if folder {
+            assert_eq!(
+                std::fs::read(place.join("notes.txt")).expect("kept"),
+                b"mine"
+            );
+            std::fs::remove_dir_all(&place).expect("rm");
+        } else {
+            assert_eq!(std::fs::read(&place).expect("kept"), b"mine");
+        }
+    }
 }
 
 /// A sweep never trains over recorded epochs: a run kept without its checkpoints, short of a

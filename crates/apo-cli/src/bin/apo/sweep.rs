@@ -33,9 +33,10 @@ pub struct SweepArgs {
     /// The sweep's directory (runs are <env>-<algo>[-<key>=<value>…]-s<seed> inside it).
     #[arg(long)]
     out: PathBuf,
-    /// Epochs of every run; 1..=1000000000.
-    #[arg(long, default_value_t = 200, value_parser = apo_cli::flags::count::<u64>(1, apo_train::config::MAX_EPOCHS as u64))]
-    epochs: u64,
+    /// Epochs of every run [default: 200; with --status: the target of the latest submission
+    /// to Slurm, else 200]; 1..=1000000000.
+    #[arg(long, value_parser = apo_cli::flags::count::<u64>(1, apo_train::config::MAX_EPOCHS as u64))]
+    epochs: Option<u64>,
     /// Environment steps per epoch of every run [default: the config's]; 1..=100000000.
     #[arg(long, value_parser = apo_cli::flags::count::<usize>(1, apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
     steps_per_epoch: Option<usize>,
@@ -71,7 +72,8 @@ pub struct SweepArgs {
     slurm_warn: u64,
     /// Print where each run of the sweep in --out stands (finished, running, queued,
     /// interrupted, failed with its reason, not started) and what a new submission would
-    /// launch; the runs are the ones the sweep recorded (sweep.toml), their target --epochs.
+    /// launch; the runs are the ones the sweep recorded (sweep.toml), their target --epochs
+    /// (default: the latest Slurm submission's).
     #[arg(long, conflicts_with_all = ["grid", "sets", "config", "preset", "steps_per_epoch", "seeds", "sbatch"])]
     status: bool,
     /// Metric that ranks the cells.
@@ -87,6 +89,9 @@ pub struct SweepArgs {
     #[arg(long)]
     quiet: bool,
 }
+
+/// Epochs of every run when `--epochs` is not given (the paper's).
+const DEFAULT_EPOCHS: usize = 200;
 
 /// Where a sweep's runs run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -143,8 +148,37 @@ pub fn task(args: &SweepTaskArgs) -> anyhow::Result<ExitCode> {
 /// `apo sweep --status`: where each run of the sweep in `--out` stands.
 fn status(args: &SweepArgs) -> anyhow::Result<ExitCode> {
     let spec = sweep::read_record(&args.out)?;
-    let epochs = args.epochs as usize;
-    let runs = sweep::expand(&spec, epochs, args.max_runs)?;
+    let submitted = apo_cli::slurm::submissions(&args.out)?;
+    let named = match (args.epochs, submitted.last()) {
+        (Some(e), _) => Some((e as usize, "--epochs")),
+        (None, Some(s)) => Some((s.epochs, "the latest submission's")),
+        (None, None) => None,
+    };
+    let runs = sweep::expand(
+        &spec,
+        named.map_or(DEFAULT_EPOCHS, |(e, _)| e),
+        args.max_runs,
+    )?;
+    // a local sweep records no target: its runs' own
+    let (epochs, from) = match named {
+        Some(found) => found,
+        None => runs
+            .iter()
+            .filter_map(|r| {
+                apo_train::run_config::RunConfig::load(&args.out.join(&r.name).join("config.toml"))
+                    .ok()
+                    .map(|c| c.train.epochs)
+            })
+            .max()
+            .map(|e| (e, "the runs' config.toml"))
+            .with_context(|| {
+                format!(
+                    "no run of {} has started and no submission records the target: pass --epochs",
+                    args.out.display()
+                )
+            })?,
+    };
+    apo_cli::outln!("target: {epochs} epochs ({from})")?;
     let standings = apo_cli::slurm::standings(&args.out, &runs, epochs)?;
     let width = standings.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
     let mut launch = Vec::new();
@@ -167,6 +201,10 @@ fn status(args: &SweepArgs) -> anyhow::Result<ExitCode> {
         }
         apo_cli::outln!("{name:<width$}  {said}")?;
     }
+    let failed = standings
+        .iter()
+        .filter(|(_, s)| matches!(s, apo_cli::slurm::Standing::Failed { .. }))
+        .count();
     if launch.is_empty() {
         apo_cli::outln!("a new submission would launch nothing")?;
     } else {
@@ -174,6 +212,13 @@ fn status(args: &SweepArgs) -> anyhow::Result<ExitCode> {
             "a new submission would launch {} run(s): {}",
             launch.len(),
             launch.join(", ")
+        )?;
+    }
+    if failed > 0 {
+        apo_cli::outln!(
+            "{failed} run(s) failed: mend what their error says before submitting again (each task's \
+             output is in {})",
+            args.out.join(apo_cli::slurm::FOLDER).display()
         )?;
     }
     Ok(ExitCode::SUCCESS)
@@ -207,7 +252,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
         },
         steps_per_epoch: args.steps_per_epoch,
     };
-    let epochs = args.epochs as usize;
+    let epochs = args.epochs.map_or(DEFAULT_EPOCHS, |e| e as usize);
     let runs = sweep::expand(&spec, epochs, args.max_runs)?;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let jobs = args.jobs.unwrap_or(1);
@@ -256,7 +301,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<ExitCode> {
         return cells(&args, &runs, epochs, &all_finished).map(|()| ExitCode::SUCCESS);
     }
     let signals = SweepSignals::install()?;
-    let total = (runs.len() as u64).saturating_mul(args.epochs);
+    let total = (runs.len() as u64).saturating_mul(epochs as u64);
     let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = ProgressBar::new(total);
         bar.set_style(
