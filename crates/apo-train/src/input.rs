@@ -73,8 +73,8 @@ pub fn read_text(path: &Path, what: &str, max_bytes: u64) -> anyhow::Result<Stri
 
 /// Checks, before any work, that a file can be written at `path` by apo's output rule: its
 /// folder exists and is a folder, `path` is not a folder, and an existing file there is
-/// replaced only with `replace` (the user's `--force`), never when it is not a regular file
-/// (a FIFO, a device). `flag` names the option in the error (`--out`).
+/// replaced only with `replace` (the user's `--force`), never when it is not a plain file (a
+/// symbolic link, a FIFO, a device). `flag` names the option in the error (`--out`).
 ///
 /// # Errors
 /// Naming the flag and the path.
@@ -82,13 +82,12 @@ pub fn check_output_file(path: &Path, flag: &str, replace: bool) -> anyhow::Resu
     if path.is_dir() {
         bail!("{flag} {} is a directory; give a file name", path.display());
     }
-    // a link (even one to nothing) exists: it is replaced only with --force, never followed
-    if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink())
-        && std::fs::metadata(path).is_err()
-        && !replace
-    {
+    // a link (even one to nothing) is never followed nor replaced, --force or not: apo
+    // replaces only plain files, the one rule of every file it writes
+    if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) {
         bail!(
-            "{flag} {} exists (a symbolic link); apo replaces an existing file only with --force",
+            "{flag} {} exists and is a symbolic link; apo replaces only plain files (with --force): \
+             remove the link or name another file",
             path.display()
         );
     }

@@ -1360,11 +1360,7 @@ mod tests {
         assert!(err.to_string().contains("`hidden`"), "{err}");
         let err =
             RunConfig::build(Algorithm::Apo, "x", None, &["init_log_std=1e30".into()]).unwrap_err();
-        assert!(
-            err.to_string()
-                .contains("`init_log_std` = 1e30"),
-            "{err}"
-        );
+        assert!(err.to_string().contains("`init_log_std` = 1e30"), "{err}");
         let action = ActionKind::Continuous { dim: 3 };
         let paper = RunConfig::defaults(Algorithm::Apo, "Hopper");
         // the paper's Hopper run: ~10 k parameters, 30 000 samples of 11 + 3 + 6 floats

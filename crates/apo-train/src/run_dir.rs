@@ -51,7 +51,7 @@ pub const EVENTS_PREFIX: &str = "events.out.tfevents.";
 pub const MARKER: &str = ".apo-run";
 
 const MARKER_HEADER: &str =
-    "# apo run directory: the entries apo created here, the only ones it will ever remove";
+    "# apo: the entries apo created in this folder, the only ones it will ever remove";
 
 /// The names apo gives its files in a run directory (a file of one of these names that apo
 /// did not create blocks `--force`: the new run would overwrite it).

@@ -353,7 +353,36 @@ fn apo_writes_its_own_run_files_only_where_it_made_them_never_through_a_link() {
     let dangling = tmp.path().join("d.png");
     std::os::unix::fs::symlink(tmp.path().join("nothere.png"), &dangling).expect("symlink");
     let err = fails(&["plot", path(&run), "--out", path(&dangling)]);
-    assert!(err.contains("exists") && err.contains("--force"), "{err}");
+    assert!(err.contains("symbolic link"), "{err}");
+    // one rule for a file the user names: a link there is never replaced, --force or not, by
+    // any subcommand; what it points to is untouched
+    for name in ["l.png", "l.gif"] {
+        let target = tmp.path().join(format!("target-{name}"));
+        std::fs::write(&target, "mine").expect("write");
+        let link = tmp.path().join(name);
+        std::os::unix::fs::symlink(&target, &link).expect("symlink");
+        let args: Vec<&str> = if name.ends_with(".png") {
+            vec!["plot", path(&run), "--out", path(&link), "--force"]
+        } else {
+            vec![
+                "render",
+                "--run",
+                path(&run),
+                "--episodes",
+                "1",
+                "--out",
+                path(&link),
+                "--force",
+            ]
+        };
+        let err = fails(&args);
+        assert!(err.contains("symbolic link"), "{name}: {err}");
+        assert!(std::fs::symlink_metadata(&link)
+            .expect("kept")
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&target).expect("kept"), b"mine");
+    }
     // a long name (the temporary file's name is cut to fit)
     let long = tmp.path().join(format!("{}.png", "c".repeat(245)));
     ok(&["plot", path(&run), "--out", path(&long)]);
