@@ -970,7 +970,7 @@ pub fn csv(report: &Report) -> anyhow::Result<String> {
 /// The statistics of a report, as JSON ([`MetricStatistics`] per metric).
 pub const STATISTICS_JSON: &str = "statistics.json";
 
-/// The files [`write`] may write into its folder whatever the runs are (all but the
+/// The files [`write()`] may write into its folder whatever the runs are (all but the
 /// per-environment curves): for a command to check them before any work.
 pub fn fixed_outputs() -> Vec<String> {
     let mut names = vec![
