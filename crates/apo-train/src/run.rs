@@ -396,6 +396,18 @@ where
         if comm.is_distributed() {
             trainer.distribute(comm.clone())?;
         }
+        // every environment takes the same number of steps: an epoch is rounded up to whole
+        // steps of all of them, which is said, never done silently
+        let (steps, envs) = (config.train.steps_per_epoch, config.train.num_envs);
+        let collected = (steps / ranks).div_ceil(envs) * envs * ranks;
+        if collected != steps && comm.rank() == 0 {
+            crate::warnln!(
+                "note: each epoch collects {collected} steps: steps_per_epoch = {steps} rounded up to whole steps of \
+                 the num_envs = {envs} environments{} (set a multiple of {} to collect exactly)",
+                if ranks > 1 { format!(" on each of the {ranks} ranks") } else { String::new() },
+                envs * ranks
+            );
+        }
         let shapes = Shapes::of(config, trainer.observation_dim(), trainer.action());
         let progress_path = run_dir.join(crate::run_dir::PROGRESS);
         let episodes_path = run_dir.join(crate::run_dir::EPISODES);

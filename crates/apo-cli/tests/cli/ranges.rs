@@ -568,3 +568,31 @@ fn a_sweep_refuses_a_key_in_both_grid_and_set_before_making_anything() {
         assert!(!out.exists(), "{extra:?}: nothing is made");
     }
 }
+
+/// Rule: nothing is rounded silently: an epoch of a number of steps that the environments do
+/// not divide is rounded up to whole steps of all of them, and the run says so.
+#[test]
+fn an_epoch_rounded_up_to_whole_environment_steps_is_said() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    let mut args = small_args(&run);
+    args.extend_from_slice(&["--set", "num_envs=3"]);
+    let out = apo(&args);
+    let err = text(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("collects 201 steps") && err.contains("multiple of 3"),
+        "{err}"
+    );
+    assert_eq!(timeless(&run)[0].env_steps, 201);
+    // a multiple says nothing
+    let exact = tmp.path().join("exact");
+    let mut args = small_args(&exact);
+    args.extend_from_slice(&["--set", "num_envs=4"]);
+    let out = apo(&args);
+    assert!(
+        !text(&out.stderr).contains("collects"),
+        "{}",
+        text(&out.stderr)
+    );
+}
