@@ -32,14 +32,14 @@ step cargo clippy --manifest-path tests/external-user/Cargo.toml --target-dir ta
 # dependencies are reused
 step env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --lib --examples --features "$features"
 step cargo test --workspace --features "$features"
-# sweeps on a real single-node Slurm (crates/apo-cli/tests/slurm.rs, ignored by a plain `cargo
-# test`): Debian's slurm-wlm and munge installed when missing, the daemons started here and
+# sweeps on a real single-node Slurm (crates/apo-cli/tests/cli/slurm.rs, ignored by a plain
+# `cargo test`): Debian's slurm-wlm and munge installed when missing, the daemons started here and
 # stopped when this script ends (scripts/slurm-local.sh; docs/cluster.md)
 step bash scripts/slurm-local.sh install
 step bash scripts/slurm-local.sh start
 trap 'bash scripts/slurm-local.sh stop >&2' EXIT
 eval "$(bash scripts/slurm-local.sh env)"
-step cargo test --workspace --features "$features" --test slurm -- --ignored --test-threads=1
+step cargo test --workspace --features "$features" --test cli -- --ignored slurm:: --test-threads=1
 # a crate outside the workspace that uses only the public API of apo-core, apo-envs and
 # apo-train (tests/external-user): the three user stories for a few epochs each, wgpu included
 step cargo run --profile test -q --manifest-path tests/external-user/Cargo.toml --target-dir target -- --wgpu

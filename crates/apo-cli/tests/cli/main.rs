@@ -17,6 +17,7 @@ mod reading;
 mod reference;
 mod render;
 mod reporting;
+mod slurm;
 mod stops;
 mod sweep_report;
 mod theory;
@@ -218,8 +219,17 @@ pub fn find_content(dir: &Path, text: &str) -> Vec<PathBuf> {
 }
 
 /// A sweep of one PPO CartPole run per seed, `epochs` epochs of 200 steps, in `out`.
+/// A sweep of one CartPole PPO run (seed 0) of `epochs` epochs × 200 steps in `out` (`extra`
+/// appended), run to its end.
 pub fn sweep(out: &Path, epochs: &str, extra: &[&str]) -> std::process::Output {
-    let mut args = vec![
+    let mut args = sweep_args(out, epochs);
+    args.extend_from_slice(extra);
+    apo(&args)
+}
+
+/// The arguments of [`sweep`].
+pub fn sweep_args<'a>(out: &'a Path, epochs: &'a str) -> Vec<&'a str> {
+    vec![
         "sweep",
         "--algo",
         "ppo",
@@ -234,9 +244,7 @@ pub fn sweep(out: &Path, epochs: &str, extra: &[&str]) -> std::process::Output {
         "--quiet",
         "--out",
         path(out),
-    ];
-    args.extend_from_slice(extra);
-    apo(&args)
+    ]
 }
 
 pub fn text(bytes: &[u8]) -> String {

@@ -686,22 +686,7 @@ fn a_config_file_edited_during_a_sweep_changes_none_of_its_runs() {
 fn a_second_sweep_of_a_running_sweeps_directory_is_refused() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
-    let args = [
-        "sweep",
-        "--algo",
-        "ppo",
-        "--env",
-        "CartPole-v1",
-        "--seeds",
-        "0",
-        "--epochs",
-        "30",
-        "--steps-per-epoch",
-        "400",
-        "--quiet",
-        "--out",
-        path(&out),
-    ];
+    let args = super::sweep_args(&out, "200");
     let child = super::spawn(&args);
     super::wait_for(&out.join("CartPole-v1-ppo-s0").join("progress.csv"));
     let second = apo(&args);

@@ -1,6 +1,6 @@
 //! `apo sweep --launcher slurm` on a real single-node Slurm (Debian's slurm-wlm and munge,
 //! started by `bash scripts/slurm-local.sh start`; `scripts/test.sh` starts one, runs these
-//! with `--ignored` and stops it):
+//! with `--ignored slurm::` and stops it):
 //!
 //! * a sweep submitted as a job array finishes, `--status` says so, and a second submission
 //!   launches nothing;
@@ -11,51 +11,13 @@
 //!   requeued task finishes the run exactly;
 //! * `srun --mpi=pmix -n 2 apo train` equals `mpirun -n 2 apo train` (the `mpi` feature);
 //! * no Slurm on PATH and options sbatch refuses are errors before anything is created.
-#![cfg(unix)]
-
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Command;
 use std::time::{Duration, Instant};
 
-use apo_train::progress_csv::{self, ProgressRow};
+use apo_train::progress_csv::ProgressRow;
 
-fn apo_exe() -> PathBuf {
-    PathBuf::from(env!("CARGO_BIN_EXE_apo"))
-}
-
-fn apo(args: &[&str]) -> Output {
-    Command::new(apo_exe())
-        .args(args)
-        .output()
-        .expect("apo runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = apo(args);
-    assert!(
-        out.status.success(),
-        "apo {args:?} failed:\n{}\n{}",
-        text(&out.stdout),
-        text(&out.stderr)
-    );
-    text(&out.stdout)
-}
-
-fn path(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
-
-fn timeless(dir: &Path) -> Vec<ProgressRow> {
-    progress_csv::read(&dir.join("progress.csv"))
-        .expect("progress.csv")
-        .into_iter()
-        .map(ProgressRow::timeless)
-        .collect()
-}
+use super::{apo, ok, path, text, timeless};
 
 /// The job id in `apo sweep --launcher slurm`'s "submitted job <id>: …" line.
 fn submitted_job(stdout: &str) -> String {
@@ -136,6 +98,30 @@ fn sweep_args<'a>(out: &'a Path, seeds: &'a str, epochs: &'a str, steps: &'a str
     ]
 }
 
+/// The one-run sweep the stop tests use (seed 0, 16 epochs of 1 000 steps) in `out`: submits
+/// it, waits for two recorded epochs, sends its task `signal` through `scancel --batch` (the
+/// batch process only, as Slurm's time-limit warning is sent) and returns the sweep's
+/// arguments, the job id and the run's directory.
+fn submit_and_signal<'a>(
+    out: &'a Path,
+    signal: &str,
+) -> (Vec<&'a str>, String, std::path::PathBuf) {
+    let args = sweep_args(out, "0", "16", "1000");
+    let job = submitted_job(&ok(&args));
+    let run = out.join("CartPole-v1-ppo-s0");
+    wait_rows(&run.join("progress.csv"), 2, 240);
+    let sent = Command::new("scancel")
+        .args([
+            "--batch",
+            &format!("--signal={signal}"),
+            &format!("{job}_0"),
+        ])
+        .status()
+        .expect("scancel runs");
+    assert!(sent.success());
+    (args, job, run)
+}
+
 /// The run trained the way the sweep's task trains it, without Slurm.
 fn reference(dir: &Path, seed: &str, epochs: &str, steps: &str) -> Vec<ProgressRow> {
     ok(&[
@@ -160,7 +146,7 @@ fn reference(dir: &Path, seed: &str, epochs: &str, steps: &str) -> Vec<ProgressR
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
 fn a_sweep_finishes_through_slurm_and_a_second_submission_launches_nothing() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
@@ -194,20 +180,12 @@ fn a_sweep_finishes_through_slurm_and_a_second_submission_launches_nothing() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
 fn a_cancelled_task_is_resumed_exactly_by_the_next_submission() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
     let (epochs, steps) = ("16", "1000");
-    let args = sweep_args(&out, "0", epochs, steps);
-    let job = submitted_job(&ok(&args));
-    let run = out.join("CartPole-v1-ppo-s0");
-    wait_rows(&run.join("progress.csv"), 2, 240);
-    let cancelled = Command::new("scancel")
-        .args(["--batch", "--signal=TERM", &format!("{job}_0")])
-        .status()
-        .expect("scancel runs");
-    assert!(cancelled.success());
+    let (args, job, run) = submit_and_signal(&out, "TERM");
     wait_job(&job, 120);
     let status = ok(&["sweep", "--status", "--out", path(&out), "--epochs", epochs]);
     assert!(status.contains("interrupted at epoch"), "{status}");
@@ -226,21 +204,13 @@ fn a_cancelled_task_is_resumed_exactly_by_the_next_submission() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
 fn the_time_limit_warning_checkpoints_and_requeues_the_task() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
     let (epochs, steps) = ("16", "1000");
-    let args = sweep_args(&out, "0", epochs, steps);
-    let job = submitted_job(&ok(&args));
-    let run = out.join("CartPole-v1-ppo-s0");
-    wait_rows(&run.join("progress.csv"), 2, 240);
     // what Slurm sends --slurm-warn seconds before the time limit
-    let warned = Command::new("scancel")
-        .args(["--batch", "--signal=USR1", &format!("{job}_0")])
-        .status()
-        .expect("scancel runs");
-    assert!(warned.success());
+    let (_, job, run) = submit_and_signal(&out, "USR1");
     wait_job(&job, 400);
     let log = std::fs::read_to_string(out.join(format!("slurm/{job}_0.out"))).expect("task output");
     assert!(log.contains("requeued"), "{log}");
@@ -253,14 +223,14 @@ fn the_time_limit_warning_checkpoints_and_requeues_the_task() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
 fn bad_input_is_refused_before_anything_is_created() {
     let tmp = tempfile::tempdir().expect("tempdir");
     // no Slurm on PATH
     let out = tmp.path().join("no-slurm");
     let empty = tmp.path().join("empty-bin");
     std::fs::create_dir(&empty).expect("dir");
-    let refused = Command::new(apo_exe())
+    let refused = Command::new(env!("CARGO_BIN_EXE_apo"))
         .args(sweep_args(&out, "0", "1", "200"))
         .env("PATH", &empty)
         .output()
@@ -296,7 +266,7 @@ fn bad_input_is_refused_before_anything_is_created() {
 
 #[cfg(feature = "mpi")]
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
 fn srun_two_ranks_train_as_mpirun_does() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let train = |dir: &Path| -> Vec<String> {
@@ -323,7 +293,7 @@ fn srun_two_ranks_train_as_mpirun_does() {
     let by_srun = tmp.path().join("srun");
     let out = Command::new("srun")
         .args(["--mpi=pmix", "-n", "2", "--cpus-per-task=1"])
-        .arg(apo_exe())
+        .arg(env!("CARGO_BIN_EXE_apo"))
         .args(train(&by_srun))
         .output()
         .expect("srun runs");
@@ -336,7 +306,7 @@ fn srun_two_ranks_train_as_mpirun_does() {
     let by_mpirun = tmp.path().join("mpirun");
     let out = Command::new("mpirun")
         .args(["--allow-run-as-root", "--oversubscribe", "-n", "2"])
-        .arg(apo_exe())
+        .arg(env!("CARGO_BIN_EXE_apo"))
         .args(train(&by_mpirun))
         .output()
         .expect("mpirun runs");
@@ -357,19 +327,11 @@ fn srun_two_ranks_train_as_mpirun_does() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored"]
+#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
 fn a_task_that_fails_is_reported_with_its_error() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
-    let args = sweep_args(&out, "0", "16", "1000");
-    let job = submitted_job(&ok(&args));
-    let run = out.join("CartPole-v1-ppo-s0");
-    wait_rows(&run.join("progress.csv"), 2, 240);
-    let cancelled = Command::new("scancel")
-        .args(["--batch", "--signal=TERM", &format!("{job}_0")])
-        .status()
-        .expect("scancel runs");
-    assert!(cancelled.success());
+    let (args, job, run) = submit_and_signal(&out, "TERM");
     wait_job(&job, 120);
     // a damaged checkpoint: the resumed task fails on it
     let policy = run.join("checkpoints/latest/policy.mpk");
