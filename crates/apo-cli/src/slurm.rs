@@ -174,35 +174,16 @@ pub fn queue(out: &Path) -> anyhow::Result<BTreeMap<String, QueueEntry>> {
     let mut jobs: Vec<&str> = latest.values().map(|s| s.job.as_str()).collect();
     jobs.sort_unstable();
     jobs.dedup();
-    let listed = Command::new("squeue")
-        .args(["--noheader", "--array", "--states=all", "--format=%i|%T|%r"])
-        .arg(format!("--jobs={}", jobs.join(",")))
-        .stdin(Stdio::null())
-        .output()
-        .context("running squeue")?;
-    let text = String::from_utf8_lossy(&listed.stdout);
     // an id no longer known to Slurm makes squeue fail; the others are then asked one by one
-    let lines: Vec<String> = if listed.status.success() {
-        text.lines().map(str::to_string).collect()
-    } else {
-        jobs.iter()
-            .filter_map(|job| {
-                Command::new("squeue")
-                    .args(["--noheader", "--array", "--states=all", "--format=%i|%T|%r"])
-                    .arg(format!("--jobs={job}"))
-                    .stdin(Stdio::null())
-                    .stderr(Stdio::null())
-                    .output()
-                    .ok()
-                    .filter(|o| o.status.success())
-            })
-            .flat_map(|o| {
-                String::from_utf8_lossy(&o.stdout)
-                    .lines()
-                    .map(str::to_string)
-                    .collect::<Vec<_>>()
-            })
-            .collect()
+    let lines = match squeue_lines(&jobs)? {
+        Some(lines) => lines,
+        None => {
+            let mut lines = Vec::new();
+            for job in &jobs {
+                lines.extend(squeue_lines(&[*job])?.unwrap_or_default());
+            }
+            lines
+        }
     };
     let mut by_id: BTreeMap<String, QueueEntry> = BTreeMap::new();
     for line in lines {
@@ -222,6 +203,26 @@ pub fn queue(out: &Path) -> anyhow::Result<BTreeMap<String, QueueEntry>> {
         .into_iter()
         .filter_map(|(run, s)| by_id.get(&s.id()).map(|e| (run, e.clone())))
         .collect())
+}
+
+/// `squeue`'s lines `<job>_<task>|<state>|<reason>` for every task of the arrays `jobs`;
+/// `None` when `squeue` refuses the list (one of the ids is no longer known to Slurm).
+///
+/// # Errors
+/// `squeue` that cannot be run.
+fn squeue_lines(jobs: &[&str]) -> anyhow::Result<Option<Vec<String>>> {
+    let listed = Command::new("squeue")
+        .args(["--noheader", "--array", "--states=all", "--format=%i|%T|%r"])
+        .arg(format!("--jobs={}", jobs.join(",")))
+        .stdin(Stdio::null())
+        .output()
+        .context("running squeue")?;
+    Ok(listed.status.success().then(|| {
+        String::from_utf8_lossy(&listed.stdout)
+            .lines()
+            .map(str::to_string)
+            .collect()
+    }))
 }
 
 /// The latest submission of each run.
@@ -581,15 +582,22 @@ fn task_error(out: &Path, submission: &Submission) -> Option<String> {
     let path = out
         .join(FOLDER)
         .join(format!("{}_{}.out", submission.job, submission.task));
-    let text = apo_train::input::read_text(&path, "a task's output", 64 << 20).ok()?;
-    let lines: Vec<&str> = text.lines().collect();
-    let error = lines.iter().rposition(|l| l.starts_with("error:"))?;
-    let stopped = lines
-        .iter()
-        .rposition(|l| l.starts_with("interrupted by SIG") || l.contains("requeued as job"));
-    stopped
-        .is_none_or(|s| s < error)
-        .then(|| lines[error].trim().to_string())
+    last_line(&path, |l| {
+        l.starts_with("error:")
+            || l.starts_with("interrupted by SIG")
+            || l.contains("requeued as job")
+    })
+    .filter(|l| l.starts_with("error:"))
+}
+
+/// The last line of the text file at `path` that `matches`, trimmed; `None` when there is none
+/// or the file cannot be read.
+fn last_line(path: &Path, matches: impl Fn(&str) -> bool) -> Option<String> {
+    let text = apo_train::input::read_text(path, "a log", 64 << 20).ok()?;
+    text.lines()
+        .rev()
+        .find(|l| matches(l))
+        .map(|l| l.trim().to_string())
 }
 
 /// Why the run in `dir` failed, as far as its records say: Slurm's final state of its task,
@@ -604,20 +612,11 @@ fn failure(
     if let Some(e) = entry {
         why.push(format!("task {} {}", e.id, e.state));
     }
-    let last_error = |path: &Path| {
-        apo_train::input::read_text(path, "a log", 64 << 20)
-            .ok()
-            .and_then(|text| {
-                text.lines()
-                    .rev()
-                    .find(|l| l.contains("error") || l.contains("ERROR"))
-                    .map(|l| l.trim().to_string())
-            })
-    };
-    if let Some(line) = submission
-        .and_then(|s| task_error(out, s))
-        .or_else(|| last_error(&dir.join(run_dir::LOG)))
-    {
+    if let Some(line) = submission.and_then(|s| task_error(out, s)).or_else(|| {
+        last_line(&dir.join(run_dir::LOG), |l| {
+            l.contains("error") || l.contains("ERROR")
+        })
+    }) {
         why.push(line);
     }
     if why.is_empty() {

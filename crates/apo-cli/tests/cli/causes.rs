@@ -378,11 +378,7 @@ fn a_folder_that_merely_holds_a_config_is_not_a_run_directory() {
         }
         match plant {
             "file" => std::fs::write(&place, b"mine").expect("user file"),
-            "fifo" => assert!(std::process::Command::new("mkfifo")
-                .arg(&place)
-                .status()
-                .expect("mkfifo (coreutils)")
-                .success()),
+            "fifo" => mkfifo(&place),
             _ => std::os::unix::fs::symlink(&user, &place).expect("link"),
         }
         let before = std::fs::read(run.join("progress.csv")).ok();
@@ -498,13 +494,6 @@ fn outputs_of_apo_names_that_are_links_or_pipes_are_refused_before_any_work() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
     small(&run, &[]);
-    let mkfifo = |p: &Path| {
-        assert!(std::process::Command::new("mkfifo")
-            .arg(p)
-            .status()
-            .expect("mkfifo (coreutils)")
-            .success())
-    };
     // a report folder: a pipe at a name the report writes, before and after apo wrote it
     let fresh = tmp.path().join("fresh");
     std::fs::create_dir(&fresh).expect("folder");

@@ -96,26 +96,46 @@ pub fn small(dir: &Path, extra: &[&str]) -> String {
     ok(&args)
 }
 
-/// A small run: 3 epochs of 600 steps on CartPole (`extra` appended).
-pub fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
-    let mut args = vec![
+/// The arguments of a quiet `apo train` of `algo` on `env` for `epochs` epochs of `steps` steps
+/// into `dir` (append the rest).
+pub fn train_args<'a>(
+    dir: &'a Path,
+    algo: &'a str,
+    env: &'a str,
+    epochs: &'a str,
+    steps: &'a str,
+) -> Vec<&'a str> {
+    vec![
         "train",
         "--algo",
         algo,
         "--env",
-        "CartPole-v1",
+        env,
         "--epochs",
-        "3",
+        epochs,
         "--steps-per-epoch",
-        "600",
-        "--seed",
-        "7",
+        steps,
         "--quiet",
         "--out",
         path(dir),
-    ];
+    ]
+}
+
+/// A small run: 3 epochs of 600 steps on CartPole, seed 7 (`extra` appended).
+pub fn train(dir: &Path, algo: &str, extra: &[&str]) -> String {
+    let mut args = train_args(dir, algo, "CartPole-v1", "3", "600");
+    args.extend(["--seed", "7"]);
     args.extend_from_slice(extra);
     ok(&args)
+}
+
+/// A named pipe at `place` (`mkfifo`).
+pub fn mkfifo(place: &Path) {
+    let made = Command::new("mkfifo")
+        .arg(place)
+        .status()
+        .expect("mkfifo (coreutils)");
+    assert!(made.success(), "mkfifo {}", place.display());
 }
 
 pub fn spawn(args: &[&str]) -> Child {

@@ -160,22 +160,9 @@ fn report_and_summary_count_each_run_once_and_leave_out_bad_rows() {
     let runs = tmp.path().join("runs");
     for seed in ["0", "1"] {
         let dir = runs.join(format!("CartPole-v1-ppo-s{seed}"));
-        ok(&[
-            "train",
-            "--algo",
-            "ppo",
-            "--env",
-            "CartPole-v1",
-            "--epochs",
-            "2",
-            "--steps-per-epoch",
-            "200",
-            "--seed",
-            seed,
-            "--quiet",
-            "--out",
-            path(&dir),
-        ]);
+        let mut args = train_args(&dir, "ppo", "CartPole-v1", "2", "200");
+        args.extend(["--seed", seed]);
+        ok(&args);
     }
     let one = runs.join("CartPole-v1-ppo-s0");
     let report = ok(&["report", path(&runs), path(&one), "--random-episodes", "1"]);
@@ -303,22 +290,9 @@ fn reports_keep_epoch_targets_apart_join_aliases_and_name_missing_records() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let mixed = tmp.path().join("mixed");
     let train = |dir: &std::path::Path, env: &str, epochs: &str, seed: &str| {
-        ok(&[
-            "train",
-            "--algo",
-            "ppo",
-            "--env",
-            env,
-            "--epochs",
-            epochs,
-            "--seed",
-            seed,
-            "--steps-per-epoch",
-            "200",
-            "--quiet",
-            "--out",
-            path(dir),
-        ]);
+        let mut args = train_args(dir, "ppo", env, epochs, "200");
+        args.extend(["--seed", seed]);
+        ok(&args);
     };
     train(&mixed.join("CartPole-v1-ppo-s0"), "CartPole", "2", "0");
     train(&mixed.join("CartPole-v1-ppo-s1"), "cartpole-v1", "3", "1");

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use apo_train::progress_csv::ProgressRow;
 
-use super::{apo, ok, path, text, timeless};
+use super::{apo, ok, path, text, timeless, train_args};
 
 /// The job id in `apo sweep --launcher slurm`'s "submitted job <id>: …" line.
 fn submitted_job(stdout: &str) -> String {
@@ -124,29 +124,14 @@ fn submit_and_signal<'a>(
 
 /// The run trained the way the sweep's task trains it, without Slurm.
 fn reference(dir: &Path, seed: &str, epochs: &str, steps: &str) -> Vec<ProgressRow> {
-    ok(&[
-        "train",
-        "--algo",
-        "ppo",
-        "--env",
-        "CartPole-v1",
-        "--seed",
-        seed,
-        "--epochs",
-        epochs,
-        "--steps-per-epoch",
-        steps,
-        "--threads",
-        "1",
-        "--quiet",
-        "--out",
-        path(dir),
-    ]);
+    let mut args = train_args(dir, "ppo", "CartPole-v1", epochs, steps);
+    args.extend(["--seed", seed, "--threads", "1"]);
+    ok(&args);
     timeless(dir)
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
+#[ignore = "needs a running Slurm (scripts/test.sh starts one)"]
 fn a_sweep_finishes_through_slurm_and_a_second_submission_launches_nothing() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
@@ -180,7 +165,7 @@ fn a_sweep_finishes_through_slurm_and_a_second_submission_launches_nothing() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
+#[ignore = "needs a running Slurm (scripts/test.sh starts one)"]
 fn a_cancelled_task_is_resumed_exactly_by_the_next_submission() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
@@ -204,7 +189,7 @@ fn a_cancelled_task_is_resumed_exactly_by_the_next_submission() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
+#[ignore = "needs a running Slurm (scripts/test.sh starts one)"]
 fn the_time_limit_warning_checkpoints_and_requeues_the_task() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");
@@ -223,7 +208,7 @@ fn the_time_limit_warning_checkpoints_and_requeues_the_task() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
+#[ignore = "needs a running Slurm (scripts/test.sh starts one)"]
 fn bad_input_is_refused_before_anything_is_created() {
     let tmp = tempfile::tempdir().expect("tempdir");
     // no Slurm on PATH
@@ -266,29 +251,15 @@ fn bad_input_is_refused_before_anything_is_created() {
 
 #[cfg(feature = "mpi")]
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
+#[ignore = "needs a running Slurm (scripts/test.sh starts one)"]
 fn srun_two_ranks_train_as_mpirun_does() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let train = |dir: &Path| -> Vec<String> {
-        [
-            "train",
-            "--algo",
-            "apo",
-            "--env",
-            "CartPole-v1",
-            "--epochs",
-            "3",
-            "--steps-per-epoch",
-            "800",
-            "--threads",
-            "1",
-            "--quiet",
-            "--out",
-            path(dir),
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect()
+        train_args(dir, "apo", "CartPole-v1", "3", "800")
+            .into_iter()
+            .chain(["--threads", "1"])
+            .map(str::to_string)
+            .collect()
     };
     let by_srun = tmp.path().join("srun");
     let out = Command::new("srun")
@@ -327,7 +298,7 @@ fn srun_two_ranks_train_as_mpirun_does() {
 }
 
 #[test]
-#[ignore = "needs a running Slurm: scripts/test.sh starts one (scripts/slurm-local.sh) and runs these with --ignored slurm::"]
+#[ignore = "needs a running Slurm (scripts/test.sh starts one)"]
 fn a_task_that_fails_is_reported_with_its_error() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("sweep");

@@ -8,7 +8,7 @@ use apo_core::Algorithm;
 use apo_train::progress_csv::{self, ProgressRow};
 use apo_train::run_config::RunConfig;
 
-use super::{apo, fails, files_under, ok, path, sweep, text, timeless};
+use super::{apo, fails, files_under, ok, path, sweep, text, timeless, train_args};
 
 /// An epoch's row with mean return `mean`, worst `min`, bound `bound` and confidence 0.5.
 fn row(epoch: usize, mean: f64, min: f64, bound: f64) -> ProgressRow {
@@ -546,20 +546,7 @@ fn a_sweep_refuses_a_link_or_a_foreign_run_in_its_place() {
     let place = out.join("CartPole-v1-ppo-s0");
     assert!(place.is_dir(), "the sweep's run");
     let outside = tmp.path().join("outside");
-    ok(&[
-        "train",
-        "--algo",
-        "ppo",
-        "--env",
-        "CartPole-v1",
-        "--epochs",
-        "1",
-        "--steps-per-epoch",
-        "300",
-        "--quiet",
-        "--out",
-        path(&outside),
-    ]);
+    ok(&train_args(&outside, "ppo", "CartPole-v1", "1", "300"));
     let outside_progress = std::fs::read(outside.join("progress.csv")).expect("progress");
     std::fs::remove_dir_all(&place).expect("rm");
     std::os::unix::fs::symlink(&outside, &place).expect("symlink");
