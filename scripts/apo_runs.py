@@ -1,9 +1,19 @@
 """What the report scripts share about a run folder (config.toml + progress.csv as `apo train`
-writes them). Imported by scripts/campaign-diagnostics.py and scripts/variants-steps.py; Python
-puts a script's own folder on the import path, so `import apo_runs` works from any directory."""
+writes them), and where a finished campaign's runs are unpacked. Imported by
+scripts/campaign-diagnostics.py, scripts/variants-steps.py and scripts/paper-budget-suites.py;
+Python puts a script's own folder on the import path, so `import apo_runs` works from any
+directory."""
 import csv
 import os
+import subprocess
 import tomllib
+
+
+def need(*paths):
+    """Unpacks the campaign archive (results/<name>.tar.xz) that each of `paths` lies in, when
+    it is not unpacked yet: a finished campaign is kept packed (scripts/results.sh)."""
+    results_sh = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results.sh")
+    subprocess.run(["bash", results_sh, "need", *paths], check=True)
 
 
 def finished_rows(run):

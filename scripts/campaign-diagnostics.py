@@ -12,10 +12,11 @@ import os
 import statistics
 import sys
 
-from apo_runs import finished_rows
+from apo_runs import finished_rows, need
 
 campaign = os.environ.get("CAMPAIGN", "results/guard-campaign")
 robust = os.environ.get("ROBUST", "results/variants/ablation")
+need(campaign, robust)
 last = int(os.environ.get("LAST", "20"))
 columns = ["pi_steps", "kl", "entropy"]
 

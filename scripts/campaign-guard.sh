@@ -28,6 +28,9 @@ last=${LAST:-20}
 suites=${SUITES:-Goal_Point Push_Point Goal_Swimmer Push_Swimmer Goal_Arm3 Goal_Drone Goal_Hopper Push_Hopper}
 robust=${ROBUST_OUT:-results/variants/ablation}
 apo=${APO:-./target/release/apo}
+# a finished campaign is kept packed (results/<name>.tar.xz): unpacked here, to be
+# resumed or extended; pack it again after with `bash scripts/results.sh pack guard-campaign`
+bash scripts/results.sh need "$out" "$robust"
 [ -x "$apo" ] || { echo "error: $apo is missing: cargo build --release -p apo-cli" >&2; exit 1; }
 sweep() { nice -n 19 "$apo" sweep --epochs "$epochs" --steps-per-epoch "$steps" --jobs "$jobs" \
   --last "$last" --metric worst-last --quiet "$@"; }

@@ -13,6 +13,8 @@ campaign=${CAMPAIGN:-results/guard-campaign}
 robust=${ROBUST:-results/variants/ablation}
 apo=${APO:-./target/release/apo}
 last_epoch=${LAST_EPOCH:-100}
+# a finished campaign is kept packed (results/<name>.tar.xz): unpacked here when needed
+bash scripts/results.sh need "$campaign" "$robust"
 runs="$out/runs"
 rm -rf "$runs"
 mkdir -p "$runs"

@@ -35,6 +35,8 @@ import re
 import statistics
 import sys
 
+from apo_runs import need
+
 FIRST, LAST = 81, 100  # the window: the last 20 epochs of the 100-epoch runs
 EPOCHS, STEPS = 100, 1_000_000
 SUITES, SEEDS, PICK = 8, 5, 2
@@ -79,6 +81,7 @@ def main():
     ap.add_argument("--root", default="results/guard-campaign/eval",
                     help="the campaign's evaluation folder (default: %(default)s, from the repository's root)")
     args = ap.parse_args()
+    need(args.root)
     root = args.root
     if not os.path.isabs(root) and not os.path.isdir(root):
         root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", root)

@@ -26,6 +26,8 @@ suites=${SUITES:-Goal_Arm3 Goal_Swimmer}
 seeds=${SEEDS:-0 1 2 3 4}
 apo=${APO:-./target/release/apo}
 campaign=${CAMPAIGN:-results/guard-campaign}
+# a finished campaign is kept packed (results/<name>.tar.xz): unpacked here when needed
+bash scripts/results.sh need "$campaign"
 [ -x "$apo" ] || { echo "error: $apo is missing: cargo build --release -p apo-cli" >&2; exit 1; }
 omega2() { case $1 in apo) echo 0.007 ;; papo) echo 0.003 ;; esac; }
 # the omega1 the campaign picked (cells.csv lists each algorithm's cells best first)

@@ -31,7 +31,8 @@ per column. Exit status 1 on any violation (or a pairing problem), else 0.
 and episodes.csv are copied over the committed run's (temporary file + os.replace; config.toml is
 left alone), and episodes.csv is added to the committed run's apo marker (.apo-run) when it has
 one, since apo created the file. Run it again after more re-runs finish: a run whose committed
-files are already the re-run's is counted as "already replaced" and left alone.
+files are already the re-run's is counted as "already replaced" and left alone. A committed root
+in an unpacked campaign (results/<name>/) is packed again after: bash scripts/results.sh pack <name>.
 """
 
 import argparse

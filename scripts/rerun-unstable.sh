@@ -33,6 +33,9 @@ apo=${APO:-./target/release/apo}
 roots=${ROOTS:-results/guard-campaign/eval results/variants/ablation}
 suites_only=${SUITES:-}
 dry=${DRY_RUN:-0}
+# a finished campaign is kept packed (results/<name>.tar.xz): unpacked here when needed
+# shellcheck disable=SC2086
+bash scripts/results.sh need $roots
 first_suites=(Goal_Drone Goal_Hopper Push_Hopper)
 
 if [ "${BASH_VERSINFO[0]}" -lt 4 ] || { [ "${BASH_VERSINFO[0]}" -eq 4 ] && [ "${BASH_VERSINFO[1]}" -lt 3 ]; }; then

@@ -21,6 +21,7 @@
 #   libegl1 libgl1-mesa-dri      headless OpenGL (EGL; Mesa's software rasterizer without a GPU) for `apo render`
 #   libosmesa6                   OSMesa, the other headless OpenGL `apo render` can use
 #   ffmpeg                       MP4 videos (`apo render --out video.mp4`; GIFs need nothing)
+#   xz-utils                     the finished campaigns' runs (results/*.tar.xz; scripts/results.sh)
 # and fetches from PyPI, checksums checked (scripts/atari_assets.py): the Arcade Learning
 # Environment's source archive (ale-py 0.12.1, into .cache/) and the Atari ROMs of the ale-py
 # wheel (into $APO_ROM_DIR or ~/.local/share/apo/roms).
@@ -29,7 +30,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(build-essential pkg-config libmujoco-dev libmujoco-samples mesa-vulkan-drivers fonts-dejavu-core strace
-  libopenmpi-dev openmpi-bin libclang-dev libegl1 libgl1-mesa-dri libosmesa6 ffmpeg)
+  libopenmpi-dev openmpi-bin libclang-dev libegl1 libgl1-mesa-dri libosmesa6 ffmpeg xz-utils)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -17,6 +17,9 @@ out=${1:-results/variants/ablation}
 jobs=${JOBS:-1}
 steps=${STEPS:-10000}
 apo=${APO:-./target/release/apo}
+# a finished campaign is kept packed (results/<name>.tar.xz): unpacked here, to be
+# resumed or extended; pack it again after with `bash scripts/results.sh pack variants`
+bash scripts/results.sh need "$out" results/guard-campaign
 [ -x "$apo" ] || { echo "error: $apo is missing: cargo build --release -p apo-cli" >&2; exit 1; }
 # the robust preset's omega (crates/apo-cli/src/config.rs), for the scale-free penalty alone
 robust_omega=(--set algo.omega1=0.01 --set algo.omega2=0.005)

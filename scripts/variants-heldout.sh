@@ -15,6 +15,9 @@ out=${1:-results/variants/heldout}
 jobs=${JOBS:-1}
 steps=${STEPS:-10000}
 apo=${APO:-./target/release/apo}
+# a finished campaign is kept packed (results/<name>.tar.xz): unpacked here, to be
+# resumed or extended; pack it again after with `bash scripts/results.sh pack variants`
+bash scripts/results.sh need "$out"
 [ -x "$apo" ] || { echo "error: $apo is missing: cargo build --release -p apo-cli" >&2; exit 1; }
 for env in ${ENVS:-Pendulum-v1 Chase_Point Walker2d-v4 HalfCheetah-v4}; do
   case $env in *_*) epochs=${EPOCHS_GUARD:-100} ;; *) epochs=${EPOCHS:-50} ;; esac

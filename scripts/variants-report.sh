@@ -13,6 +13,8 @@ cd "$(dirname "$0")/.."
 src=${1:-results/variants/ablation}
 out=${2:-/tmp/variants-report}
 apo=${APO:-./target/release/apo}
+# a finished campaign is kept packed (results/<name>.tar.xz): unpacked here when needed
+bash scripts/results.sh need "$src" results/guard-campaign
 runs="$out/runs"
 keep() { [ -z "${ALGOS:-}" ] || [[ " $ALGOS " == *" $1 "* ]]; }
 # a run counts once its last epoch is the one its config.toml asks for (runs still going are left out)

@@ -11,10 +11,11 @@ import os
 import statistics
 import sys
 
-from apo_runs import finished_rows
+from apo_runs import finished_rows, need
 
 
 root = sys.argv[1] if len(sys.argv) > 1 else "results/variants/ablation"
+need(root, "results/guard-campaign")
 print("| env | cell | epochs | full steps | median accepted try | median KL | rejected tries: KL / objective |")
 print("|---|---|---|---|---|---|---|")
 cells = [(*cell.split(os.sep)[-2:], os.path.join(cell, "*-s*")) for cell in sorted(glob.glob(os.path.join(root, "*", "*")))]
