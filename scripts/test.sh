@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The project's tests: formatting, lints (warnings are errors), the libraries' docs, every
-# crate's tests and doctests, an outside crate on the public API, and the examples of the
-# training library run for a few hundred steps.
+# crate's tests and doctests, the docs' command blocks, an outside crate on the public API, and
+# the examples of the training library run for a few hundred steps.
 # Needs rustfmt and clippy (rustup's default profile has both) and the packages and assets
 # that `scripts/setup.sh` (or `--deps-only`) installs; MuJoCo 3.17 is fetched here when missing.
 set -euo pipefail
@@ -32,6 +32,9 @@ step cargo clippy --manifest-path tests/external-user/Cargo.toml --target-dir ta
 # dependencies are reused
 step env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --lib --examples --features "$features"
 step cargo test --workspace --features "$features"
+# every command block of the README and the handbook that is not marked `long` runs, with the
+# binary the tests built, in a scratch copy of the repository (scripts/doc_commands.py)
+step env APO="${CARGO_TARGET_DIR:-target}/debug/apo" python3 scripts/doc_commands.py
 # sweeps on a real single-node Slurm (crates/apo-cli/tests/cli/slurm.rs, ignored by a plain
 # `cargo test`): Debian's slurm-wlm and munge installed when missing, the daemons started here and
 # stopped when this script ends (scripts/slurm-local.sh; docs/cluster.md)

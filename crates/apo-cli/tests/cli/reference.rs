@@ -142,7 +142,9 @@ fn every_command_in_the_docs_uses_flags_that_exist() {
         let mut lines: Vec<String> = Vec::new();
         for line in text.lines() {
             if line.starts_with("```") {
-                in_shell = !in_shell && (line == "```sh" || line == "```bash" || line == "```");
+                // ```sh, ```bash, ```zsh, with or without words after (```sh long), or bare
+                let info = line[3..].split_whitespace().next();
+                in_shell = !in_shell && matches!(info, None | Some("sh" | "bash" | "zsh"));
                 continue;
             }
             if !in_shell {
