@@ -34,7 +34,7 @@ pub struct SweepArgs {
     #[arg(long)]
     out: PathBuf,
     /// Epochs of every run [default: 200; with --status: the target of the latest submission
-    /// to Slurm, else 200]; 1..=1000000000.
+    /// to Slurm, else the largest of the runs' config.toml]; 1..=1000000000.
     #[arg(long, value_parser = apo_cli::flags::count::<u64>(1, apo_train::config::MAX_EPOCHS as u64))]
     epochs: Option<u64>,
     /// Environment steps per epoch of every run [default: the config's]; 1..=100000000.
