@@ -408,29 +408,14 @@ pub fn epoch(
     threads: usize,
     stop: &std::sync::atomic::AtomicBool,
 ) -> anyhow::Result<EpochBench> {
-    struct Train<'a> {
-        config: &'a apo_train::RunConfig,
-        dir: &'a std::path::Path,
-        threads: usize,
-        stop: &'a std::sync::atomic::AtomicBool,
-    }
-    impl apo_train::OnBackend for Train<'_> {
-        /// The run's wall time, seconds.
-        type Output = anyhow::Result<f64>;
-        fn run<B: Backend>(self) -> anyhow::Result<f64> {
-            let start = Instant::now();
-            let launch = apo_train::run::Launch::new(self.threads);
-            let mut run = apo_train::run::Run::<B>::create(
-                self.dir,
-                self.config.clone(),
-                &launch,
-                &Default::default(),
-                false,
-            )?;
-            while run.epoch(self.stop, &mut |_| {})?.is_some() {}
-            Ok(start.elapsed().as_secs_f64())
-        }
-    }
+    // the run's wall time, seconds
+    let train = |dir: &std::path::Path| -> anyhow::Result<f64> {
+        let start = Instant::now();
+        let launch = apo_train::run::Launch::new(threads);
+        let mut run = apo_train::AnyRun::create(dir, config.clone(), &launch, false)?;
+        while run.epoch(stop, &mut |_| {})?.is_some() {}
+        Ok(start.elapsed().as_secs_f64())
+    };
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.subsec_nanos());
@@ -438,14 +423,9 @@ pub fn epoch(
     // the run takes the prepared directory (its lock released for it) and trains in it
     let mut prepared = apo_train::run_dir::NewRunDir::prepare(&dir, false)?;
     drop(prepared.take_lock());
-    let trained = config.backend.dispatch(Train {
-        config,
-        dir: &dir,
-        threads,
-        stop,
-    });
+    let trained = train(&dir);
     let progress = dir.join(apo_train::run_dir::PROGRESS);
-    let trained = trained.and_then(|t| t).and_then(|wall_s| {
+    let trained = trained.and_then(|wall_s| {
         let rows = match progress.exists() {
             true => apo_train::progress_csv::read(&progress)?,
             // stopped before the first epoch

@@ -164,10 +164,7 @@ fn normalized_score(agent: f64, trpo: f64, random: f64) -> Option<f64> {
 /// `paths` with each directory once, by its canonical path, in the order given (a run named
 /// twice, e.g. as `runs/a` and `runs/./a`, is counted once, with a note). A path that does not
 /// exist is kept as it is, for its reader to name.
-///
-/// # Errors
-/// None so far; the signature leaves room for checks that can fail.
-pub fn distinct_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+fn distinct_runs(paths: &[PathBuf]) -> Vec<PathBuf> {
     let mut seen = std::collections::BTreeSet::new();
     let mut runs = Vec::new();
     for path in paths {
@@ -178,19 +175,21 @@ pub fn distinct_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
             apo_train::warnln!("note: {} is listed twice; it counts once", path.display());
         }
     }
-    Ok(runs)
+    runs
 }
 
-/// The run directories among `paths`: a path that is a run directory, or, for a folder that
-/// is not, the run directories directly inside it (a sweep's folder), sorted; each run once
-/// (see [`distinct_runs`]).
+/// The run directories among `paths`: a path that holds a run's records (`config.toml` or
+/// `progress.csv`, read and checked by the caller), or, for a folder that holds neither, the
+/// run directories directly inside it (a sweep's folder), sorted; each run once, by its
+/// canonical path (a run named twice, e.g. as `runs/a` and `runs/./a`, counts once, with a
+/// note).
 ///
 /// # Errors
 /// A path that does not exist or holds no run.
 pub fn find_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
     let mut runs = Vec::new();
     for path in paths {
-        if run_dir::is_run_dir(path) {
+        if path.join(run_dir::CONFIG).exists() || path.join(run_dir::PROGRESS).exists() {
             runs.push(path.clone());
             continue;
         }
@@ -210,7 +209,7 @@ pub fn find_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
         inside.sort();
         runs.extend(inside);
     }
-    distinct_runs(&runs)
+    Ok(distinct_runs(&runs))
 }
 
 /// The variant of a run directory named `name` of `algo` on `env` (see the module's

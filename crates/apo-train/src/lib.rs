@@ -190,6 +190,11 @@
 //! `tests/run.rs` checks that the resumed run's networks, `progress.csv` and `episodes.csv`
 //! equal those of a run that never stopped, and the workspace's outside crate
 //! (`tests/external-user`) does the same with the built-in MLP and with a `burn::nn` policy.
+//!
+//! A program that picks the backend at run time from the config (`backend = "wgpu"`) opens
+//! the run as an [`AnyRun`] (`AnyRun::create(&dir, config, &launch, false)`, the same methods),
+//! which compiles the training loop once per backend here rather than in the program's crates;
+//! the `apo` binary trains that way.
 
 /// `eprintln!` that never panics: what cannot be written to standard error (a closed pipe, a
 /// full device) is dropped, since there is nowhere left to report it.
@@ -202,6 +207,7 @@ macro_rules! warnln {
 }
 
 pub mod actor;
+mod any_run;
 pub mod atomic;
 pub mod backend;
 pub mod checkpoint;
@@ -226,6 +232,7 @@ pub mod trainer;
 pub mod video;
 
 pub use actor::{Act, Actor, BurnActor, HostActor};
+pub use any_run::AnyRun;
 pub use backend::{BackendKind, OnBackend};
 pub use config::{ActionMapping, EpisodeReset, EvalMetric, TrainConfig};
 pub use error::TrainError;

@@ -141,9 +141,9 @@ fn every_command_in_the_docs_uses_flags_that_exist() {
         // a command continued over several lines (`\` at the end) is read as one
         let mut lines: Vec<String> = Vec::new();
         for line in text.lines() {
-            if line.starts_with("```") {
+            if let Some(fence) = line.strip_prefix("```") {
                 // ```sh, ```bash, ```zsh, with or without words after (```sh long), or bare
-                let info = line[3..].split_whitespace().next();
+                let info = fence.split_whitespace().next();
                 in_shell = !in_shell && matches!(info, None | Some("sh" | "bash" | "zsh"));
                 continue;
             }

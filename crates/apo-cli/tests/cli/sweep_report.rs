@@ -687,3 +687,34 @@ fn a_second_sweep_of_a_running_sweeps_directory_is_refused() {
     let (code, _, stderr) = super::finish(child, 120);
     assert_eq!(code, Some(143), "the first sweep stops as asked: {stderr}");
 }
+
+/// `summary` and `plot` read a sweep's folder as the runs directly inside it, as `report`
+/// does; a folder that holds no run is named.
+#[test]
+fn summary_and_plot_read_a_sweep_folder_as_its_runs() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let done = sweep(&out, "2", &[]);
+    assert!(done.status.success(), "{}", text(&done.stderr));
+    let run = out.join("CartPole-v1-ppo-s0");
+    let of_folder = ok(&["summary", path(&out), "--csv", "--last", "1"]);
+    let of_run = ok(&["summary", path(&run), "--csv", "--last", "1"]);
+    assert_eq!(of_folder.lines().count(), 2, "{of_folder}");
+    // the same row, the run named by its path under the folder either way
+    assert_eq!(of_folder, of_run);
+    let png = tmp.path().join("curves.png");
+    ok(&["plot", path(&out), "--out", path(&png)]);
+    assert!(std::fs::metadata(&png).expect("plot written").len() > 0);
+    let empty = tmp.path().join("empty");
+    std::fs::create_dir(&empty).expect("folder");
+    for command in ["summary", "plot"] {
+        let mut args = vec![command, path(&empty)];
+        if command == "plot" {
+            args.extend(["--out", path(&png), "--force"]);
+        }
+        let failed = apo(&args);
+        let err = text(&failed.stderr);
+        assert_eq!(failed.status.code(), Some(1), "{command}: {err}");
+        assert!(err.contains("holds no run directory"), "{command}: {err}");
+    }
+}

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct PlotArgs {
-    /// Run directories.
+    /// Run directories, or folders of runs (a sweep's: each run directly inside it).
     #[arg(required = true)]
     runs: Vec<PathBuf>,
     /// Output image, .png or .svg.
@@ -24,7 +24,7 @@ pub struct PlotArgs {
 
 pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
     apo_train::input::check_output_file(&args.out, "--out", args.force)?;
-    let runs = apo_cli::report::distinct_runs(&args.runs)?;
+    let runs = apo_cli::report::find_runs(&args.runs)?;
     apo_cli::plot::plot(
         &runs,
         &args.out,

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct SummaryArgs {
-    /// Run directories.
+    /// Run directories, or folders of runs (a sweep's: each run directly inside it).
     #[arg(required = true)]
     runs: Vec<PathBuf>,
     /// N of "the last N epochs" (paper: 20 continuous, 100 Atari); 1..=1000000000.
@@ -17,7 +17,7 @@ pub struct SummaryArgs {
 
 pub fn run(args: &SummaryArgs) -> anyhow::Result<()> {
     let last = args.last as usize;
-    let rows = apo_cli::report::distinct_runs(&args.runs)?
+    let rows = apo_cli::report::find_runs(&args.runs)?
         .iter()
         .map(|run| {
             Ok((

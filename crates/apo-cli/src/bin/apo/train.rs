@@ -10,9 +10,10 @@ use apo_core::Algorithm;
 use apo_envs::mujoco::Physics;
 use apo_train::backend::BackendKind;
 use apo_train::progress_csv::ProgressRow;
-use apo_train::run::{Launch, Run};
+use apo_train::run::Launch;
 use apo_train::run_config::{Preset, RunConfig};
 use apo_train::run_dir;
+use apo_train::AnyRun;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::signals::{interrupted_status, Signals, STOP_GRACE};
@@ -251,14 +252,14 @@ fn train(args: TrainArgs, comm: &apo_core::Comm) -> anyhow::Result<ExitCode> {
             (config.backend, Some((config, dir)))
         }
     };
-    let run = Open {
+    Open {
         args: &args,
         create,
         launch: &launch,
         signals: &signals,
         quiet,
-    };
-    backend.dispatch(run)?
+    }
+    .train(backend)
 }
 
 /// A run to create (its config and directory) or to resume (`--resume`), trained on a backend.
@@ -270,11 +271,9 @@ struct Open<'a> {
     quiet: bool,
 }
 
-impl apo_train::OnBackend for Open<'_> {
-    type Output = anyhow::Result<ExitCode>;
-
-    fn run<B: burn::tensor::backend::Backend>(self) -> anyhow::Result<ExitCode> {
-        let device = Default::default();
+impl Open<'_> {
+    /// Creates or resumes the run on `backend` and trains it to its target.
+    fn train(self, backend: BackendKind) -> anyhow::Result<ExitCode> {
         let comm = &self.launch.comm;
         let dir = match (&self.create, &self.args.resume) {
             (Some((_, dir)), _) | (None, Some(dir)) => dir.clone(),
@@ -301,13 +300,13 @@ impl apo_train::OnBackend for Open<'_> {
         );
         let mut run = match self.create {
             Some((config, dir)) => {
-                let run = Run::<B>::create(&dir, config, self.launch, &device, self.args.force)?;
+                let run = AnyRun::create(&dir, config, self.launch, self.args.force)?;
                 init_logging((comm.rank() == 0).then_some(dir.as_path()))?;
                 run
             }
             None => {
                 let dir = self.args.resume.as_deref().context("--resume")?;
-                Run::<B>::resume(dir, self.launch, &device, self.args.epochs)?
+                AnyRun::resume(backend, dir, self.launch, self.args.epochs)?
             }
         };
         let mut bar = Bar::new(self.quiet, run.config());
