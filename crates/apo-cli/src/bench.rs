@@ -384,6 +384,20 @@ pub struct UpdateBench {
     pub kernels: Kernels,
 }
 
+impl UpdateBench {
+    /// [`update`] on `backend`, on its default device.
+    ///
+    /// Not generic, so that the updates of every backend are compiled once, here, and not
+    /// again in each program that picks the backend at run time.
+    ///
+    /// # Errors
+    /// A backend this build lacks ([`apo_train::BackendKind::dispatch`]).
+    #[inline(never)]
+    pub fn on(self, backend: apo_train::BackendKind) -> anyhow::Result<UpdateTimings> {
+        backend.dispatch(self)
+    }
+}
+
 impl apo_train::OnBackend for UpdateBench {
     type Output = UpdateTimings;
 

@@ -129,13 +129,14 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             sized
                 .check_memory(obs, apo_core::ActionKind::Continuous { dim: act })
                 .context("apo bench update --batch/--obs/--act")?;
-            let t = backend.dispatch(apo_cli::bench::UpdateBench {
+            let t = apo_cli::bench::UpdateBench {
                 batch,
                 obs,
                 act,
                 repeats,
                 kernels: kernels.resolve(backend),
-            })?;
+            }
+            .on(backend)?;
             apo_cli::outln!(
                 "backend={backend} kernels={kernels} batch={batch} obs={obs} act={act} params={} repeats={repeats}",
                 t.params
