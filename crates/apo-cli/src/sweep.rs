@@ -34,6 +34,7 @@ use apo_train::run_dir;
 
 /// One axis of the grid: a config key and its values (TOML syntax, as for `--set`).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Axis {
     /// The dotted config key, e.g. `algo.omega1`.
     pub key: String,
@@ -181,8 +182,10 @@ pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
     Ok(seeds)
 }
 
-/// What a sweep runs (recorded as `sweep.toml`).
+/// What a sweep runs (recorded as `sweep.toml`; a key it does not know is refused, so an
+/// edited record never drops a setting silently).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SweepSpec {
     /// Environments.
     pub envs: Vec<String>,

@@ -718,3 +718,30 @@ fn summary_and_plot_read_a_sweep_folder_as_its_runs() {
         assert!(err.contains("holds no run directory"), "{command}: {err}");
     }
 }
+
+/// A key the sweep record does not know (an edit of `sweep.toml`) is refused by name, by the
+/// next sweep and by `--status`, rather than dropped.
+#[test]
+fn a_sweep_record_with_an_unknown_key_is_refused_by_name() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let first = sweep(&out, "1", &[]);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    let record = out.join("sweep.toml");
+    let mut edited = std::fs::read_to_string(&record).expect("record");
+    edited.push_str("seedz = [1, 2]\n");
+    std::fs::write(&record, &edited).expect("edit");
+    let again = sweep(&out, "2", &[]);
+    let status = apo(&["sweep", "--status", "--out", path(&out)]);
+    for (what, done) in [("sweep", &again), ("--status", &status)] {
+        let err = text(&done.stderr);
+        assert_eq!(done.status.code(), Some(1), "{what}: {err}");
+        assert!(
+            err.contains("sweep.toml") && err.contains("seedz"),
+            "{what}: {err}"
+        );
+    }
+    // nothing was trained again: the run still ends at epoch 1
+    let rows = timeless(&out.join("CartPole-v1-ppo-s0"));
+    assert_eq!(rows.len(), 1);
+}
