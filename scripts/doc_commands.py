@@ -11,6 +11,10 @@ files as git lists them), so a page's later block can use what an earlier one ma
 under `bash -e -o pipefail` with `apo` on PATH (APO, default target/debug/apo) and a scratch
 HOME, and must end with status 0 within TIMEOUT seconds (default 300).
 
+Every `rust` block is checked, not run: its lines must be, in order, lines of a doctest of a
+crate's docs (`//!` or `///`, hidden `# ` lines aside) or of an example or test file, where
+`cargo test` compiles and runs them.
+
     python3 scripts/doc_commands.py [PAGE...]        (default: every page)
     python3 scripts/doc_commands.py --list [PAGE...] (the blocks and whether each is run)
 
@@ -38,15 +42,16 @@ def pages():
     return [p for p in found if p != "docs/cli.md"]
 
 
-def blocks(page):
-    """(line, info words, text) of each sh/bash block of `page`."""
+def blocks(page, kinds=("sh", "bash")):
+    """(line, info words, text) of each block of `page` whose info string starts with one of
+    `kinds`."""
     found, inside, start, words, body = [], False, 0, [], []
     with open(os.path.join(REPO, page), encoding="utf-8") as f:
         for number, line in enumerate(f, 1):
             line = line.rstrip("\n")
             if line.startswith("```"):
                 if inside:
-                    if words[:1] and words[0] in ("sh", "bash"):
+                    if words[:1] and words[0] in kinds:
                         found.append((start, words, "\n".join(body) + "\n"))
                     inside = False
                 else:
@@ -56,6 +61,43 @@ def blocks(page):
     if inside:
         fail(f"{page}:{start}: a code block is never closed")
     return found
+
+
+def rust_sources():
+    """The code of every doctest and example of the crates: lists of stripped lines."""
+    found = []
+    for path in sorted(glob.glob(os.path.join(REPO, "crates/*/src/**/*.rs"), recursive=True)):
+        with open(path, encoding="utf-8") as f:
+            lines = [l.strip() for l in f]
+        docs = [l[3:].strip() for l in lines if l.startswith(("//!", "///"))]
+        found.append([l for l in docs if l != "#" and not l.startswith("# ")])
+    for pattern in ("crates/*/examples/*.rs", "crates/*/tests/**/*.rs", "tests/*/src/*.rs"):
+        for path in sorted(glob.glob(os.path.join(REPO, pattern), recursive=True)):
+            with open(path, encoding="utf-8") as f:
+                found.append([l.strip() for l in f])
+    return found
+
+
+def quoted(block, sources):
+    """Whether the non-empty lines of `block` appear, in order and adjacent (blank lines aside),
+    in one of `sources`."""
+    want = [l.strip() for l in block.splitlines() if l.strip()]
+    for lines in sources:
+        have = [l for l in lines if l]
+        for start in range(len(have) - len(want) + 1):
+            if have[start:start + len(want)] == want:
+                return True
+    return False
+
+
+def unquoted_rust():
+    """`page:line` of each rust block of the docs that no doctest, example or test holds."""
+    sources, missing = rust_sources(), []
+    for page in pages():
+        for line, words, text in blocks(page, ("rust",)):
+            if not quoted(text, sources):
+                missing.append(f"{page}:{line}")
+    return missing
 
 
 def scratch_copy(dest):
@@ -132,6 +174,8 @@ def main():
                     failed.append(f"{page}:{line}: status {status}\n{text}--- output (tail):\n{tail}\n")
     if listing:
         return 0
+    for where in [] if chosen else unquoted_rust():
+        failed.append(f"{where}: a rust block that no doctest, example or test holds (quote one)\n")
     print(f"ran {ran} command blocks in {time.monotonic() - t0:.0f} s; {long_} marked long, not run")
     if failed:
         print("\nfailed:\n" + "\n".join(failed), file=sys.stderr)

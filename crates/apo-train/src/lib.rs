@@ -30,8 +30,8 @@
 //! * [`seed`] — the seed streams of a run.
 //!
 //! The backend type `B` is a plain Burn backend (`NdArray`, `Wgpu`), not `Autodiff<B>`: the
-//! learner adds autodiff itself. A first build compiles Burn's dependency tree, which is most
-//! of its time (tens of minutes on 2 cores); keep it down by turning on only the backend
+//! learner adds autodiff itself. A first build compiles Burn's dependency tree, which is much
+//! of its time (minutes on 2 cores); keep it down by turning on only the backend
 //! features you use (`burn = { version = "0.21", default-features = false,
 //! features = ["std", "autodiff", "ndarray"] }`), and make debug builds fast to run with
 //! `[profile.dev.package."*"] opt-level = 2` (dependencies optimized, your crate not).
