@@ -193,18 +193,32 @@ pub fn find_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
             runs.push(path.clone());
             continue;
         }
-        let entries = std::fs::read_dir(path).with_context(|| {
-            format!(
-                "{} is neither a run directory nor a folder of runs",
+        match std::fs::metadata(path) {
+            Err(e) => bail!(
+                "{}: {e}: it is neither a run directory nor a folder of runs (a run directory has a {} or {})",
+                path.display(),
+                run_dir::CONFIG,
+                run_dir::PROGRESS
+            ),
+            Ok(m) if !m.is_dir() => bail!(
+                "{} is not a folder: it is neither a run directory nor a folder of runs",
                 path.display()
-            )
-        })?;
+            ),
+            Ok(_) => {}
+        }
+        let entries = std::fs::read_dir(path)
+            .with_context(|| format!("cannot list the runs of {}", path.display()))?;
         let mut inside: Vec<PathBuf> = entries
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| run_dir::is_run_dir(p))
             .collect();
         if inside.is_empty() {
-            bail!("{} holds no run directory", path.display());
+            bail!(
+                "{} is not a run directory (it has neither {} nor {}) and holds no run directory",
+                path.display(),
+                run_dir::PROGRESS,
+                run_dir::CONFIG
+            );
         }
         inside.sort();
         runs.extend(inside);
