@@ -247,8 +247,18 @@ pub fn sweep(out: &Path, epochs: &str, extra: &[&str]) -> std::process::Output {
     apo(&args)
 }
 
-/// The arguments of [`sweep`].
+/// The arguments of [`sweep`]: seed 0, 200 steps per epoch.
 pub fn sweep_args<'a>(out: &'a Path, epochs: &'a str) -> Vec<&'a str> {
+    sweep_args_of(out, "0", epochs, "200")
+}
+
+/// The arguments of a quiet PPO sweep on CartPole-v1 of `seeds` into `out`.
+pub fn sweep_args_of<'a>(
+    out: &'a Path,
+    seeds: &'a str,
+    epochs: &'a str,
+    steps: &'a str,
+) -> Vec<&'a str> {
     vec![
         "sweep",
         "--algo",
@@ -256,11 +266,11 @@ pub fn sweep_args<'a>(out: &'a Path, epochs: &'a str) -> Vec<&'a str> {
         "--env",
         "CartPole-v1",
         "--seeds",
-        "0",
+        seeds,
         "--epochs",
         epochs,
         "--steps-per-epoch",
-        "200",
+        steps,
         "--quiet",
         "--out",
         path(out),

@@ -77,25 +77,11 @@ fn wait_rows(file: &Path, rows: usize, secs: u64) {
     }
 }
 
+/// The arguments of a sweep submitted to Slurm ([`super::sweep_args_of`]).
 fn sweep_args<'a>(out: &'a Path, seeds: &'a str, epochs: &'a str, steps: &'a str) -> Vec<&'a str> {
-    vec![
-        "sweep",
-        "--launcher",
-        "slurm",
-        "--algo",
-        "ppo",
-        "--env",
-        "CartPole-v1",
-        "--seeds",
-        seeds,
-        "--epochs",
-        epochs,
-        "--steps-per-epoch",
-        steps,
-        "--quiet",
-        "--out",
-        path(out),
-    ]
+    let mut args = super::sweep_args_of(out, seeds, epochs, steps);
+    args.extend(["--launcher", "slurm"]);
+    args
 }
 
 /// The one-run sweep the stop tests use (seed 0, 16 epochs of 1 000 steps) in `out`: submits
