@@ -4,10 +4,11 @@
 //!
 //! Burn's autodiff runs these passes as a graph of separate tensor ops; on the NdArray
 //! backend each op is its own pass over a `[batch, 64]` tensor, and those passes, not the
-//! matmuls, are most of the time (`docs/benchmarks.md`). Here a layer is one matmul
-//! (`matrixmultiply`'s `sgemm`, runtime-dispatched AVX2/FMA kernels, one thread, so results
-//! are bit-reproducible) and one sweep that adds the bias and applies the activation; the
-//! backward and tangent passes fuse the activation's derivative into one sweep each.
+//! matmuls, are most of the time (`docs/benchmarks.md`). Here a layer is one matmul (the
+//! `gemm` crate's or `matrixmultiply`'s, whichever is faster for the shape, see [`gemm`];
+//! runtime-dispatched AVX-512/AVX2 kernels, one thread, so results are bit-reproducible) and
+//! one sweep that adds the bias and applies the activation; the backward and tangent passes
+//! fuse the activation's derivative into one sweep each.
 //! Large batches are split into parts run in parallel ([`HostNet::run`]). Buffers are kept
 //! between calls: nothing is allocated once the sizes are known.
 
@@ -52,7 +53,45 @@ fn tanh_scalar(x: f32) -> f32 {
     (e - 1.0) / (e + 1.0)
 }
 
-/// `row + bias` then `tanh`, in place, for each `[width]` row of `rows` (`[n, width]`).
+/// Defines `$vis fn $name(args)` that runs the `#[inline(always)]` function `$body` compiled
+/// for the widest vector unit the CPU has: AVX-512, AVX2 with FMA, or the baseline. Rust
+/// never contracts `a * b + c` into a fused multiply-add and the bodies call no library
+/// function, so every form performs the same IEEE operations and the result does not depend
+/// on the CPU; only the width of the loops the compiler vectorizes does.
+macro_rules! widest_simd {
+    ($(#[$doc:meta])* $vis:vis fn $name:ident = $body:ident($($arg:ident: $ty:ty),* $(,)?)) => {
+        $(#[$doc])*
+        $vis fn $name($($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+                fn avx512($($arg: $ty),*) {
+                    $body($($arg),*)
+                }
+                #[target_feature(enable = "avx2,fma")]
+                fn avx2($($arg: $ty),*) {
+                    $body($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+                    && std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+                {
+                    // SAFETY: the CPU has every feature `avx512` is compiled for.
+                    return unsafe { avx512($($arg),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+                {
+                    // SAFETY: the CPU has every feature `avx2` is compiled for.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            $body($($arg),*)
+        }
+    };
+}
+
 #[inline(always)]
 fn bias_tanh_body(rows: &mut [f32], bias: &[f32]) {
     for row in rows.chunks_exact_mut(bias.len()) {
@@ -62,26 +101,109 @@ fn bias_tanh_body(rows: &mut [f32], bias: &[f32]) {
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn bias_tanh_avx2(rows: &mut [f32], bias: &[f32]) {
-    bias_tanh_body(rows, bias)
+widest_simd! {
+    /// `row + bias` then `tanh`, in place, for each `[width]` row of `rows` (`[n, width]`).
+    pub(crate) fn bias_tanh = bias_tanh_body(rows: &mut [f32], bias: &[f32])
 }
 
-/// [`bias_tanh_body`] compiled for the widest vector unit the CPU has (the same IEEE
-/// operations either way, so the result does not depend on the CPU).
-fn bias_tanh(rows: &mut [f32], bias: &[f32]) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU supports AVX2 and FMA, checked just above.
-        unsafe { bias_tanh_avx2(rows, bias) };
-        return;
+#[inline(always)]
+fn add_bias_body(rows: &mut [f32], bias: &[f32]) {
+    for row in rows.chunks_exact_mut(bias.len()) {
+        for (v, b) in row.iter_mut().zip(bias) {
+            *v += b;
+        }
     }
-    bias_tanh_body(rows, bias)
 }
+
+widest_simd! {
+    /// `row + bias` for each `[width]` row of `rows` (`[n, width]`).
+    pub(crate) fn add_bias = add_bias_body(rows: &mut [f32], bias: &[f32])
+}
+
+#[inline(always)]
+fn rows_times_weight_body(x: &[f32], weight: &[f32], input: usize, out: &mut [f32]) {
+    let output = weight.len() / input.max(1);
+    for (row_in, row_out) in x.chunks_exact(input).zip(out.chunks_exact_mut(output)) {
+        for (&xi, w) in row_in.iter().zip(weight.chunks_exact(output)) {
+            for (o, &wij) in row_out.iter_mut().zip(w) {
+                *o += xi * wij;
+            }
+        }
+    }
+}
+
+widest_simd! {
+    /// `out += x·W` row by row, for a few rows: `x` is `[n, input]`, `W` `[input, output]`
+    /// (row-major, a few kilobytes that stay in L1), `out` `[n, output]`. Each row of `out` is
+    /// a sum of `W`'s rows scaled by `x`'s, a loop over `output` contiguous floats; no packing,
+    /// which would cost more than a rollout's policy call.
+    pub(crate) fn rows_times_weight = rows_times_weight_body(
+        x: &[f32],
+        weight: &[f32],
+        input: usize,
+        out: &mut [f32],
+    )
+}
+
+#[inline(always)]
+fn column_sums_body(rows: &[f32], sums: &mut [f32]) {
+    sums.fill(0.0);
+    for row in rows.chunks_exact(sums.len()) {
+        for (g, d) in sums.iter_mut().zip(row) {
+            *g += d;
+        }
+    }
+}
+
+widest_simd! {
+    /// `sums = Σ rows`, the column sums of `rows` (`[n, width]`), summed in row order.
+    fn column_sums = column_sums_body(rows: &[f32], sums: &mut [f32])
+}
+
+#[inline(always)]
+fn times_tanh_derivative_body(delta: &mut [f32], act: &[f32]) {
+    for (d, a) in delta.iter_mut().zip(act) {
+        *d *= 1.0 - a * a;
+    }
+}
+
+widest_simd! {
+    /// `δ ⊙ (1 − a²)`, in place: through `tanh` backwards, with `a = tanh(h)`.
+    fn times_tanh_derivative = times_tanh_derivative_body(delta: &mut [f32], act: &[f32])
+}
+
+#[inline(always)]
+fn bias_times_tanh_derivative_body(rows: &mut [f32], bias: &[f32], act: &[f32]) {
+    for (row, a_row) in rows
+        .chunks_exact_mut(bias.len())
+        .zip(act.chunks_exact(bias.len()))
+    {
+        for ((h, db), a) in row.iter_mut().zip(bias).zip(a_row) {
+            *h = (*h + db) * (1.0 - a * a);
+        }
+    }
+}
+
+widest_simd! {
+    /// `(row + bias) ⊙ (1 − a²)`, in place, for each `[width]` row of `rows` and of `act`:
+    /// a tangent through the bias and then through `tanh`.
+    fn bias_times_tanh_derivative = bias_times_tanh_derivative_body(
+        rows: &mut [f32],
+        bias: &[f32],
+        act: &[f32],
+    )
+}
+
+/// Below this inner dimension `k`, [`gemm`] calls `matrixmultiply`; from it on, the `gemm`
+/// crate. Measured on the layers' shapes (parts of 1 250 rows, widths 1–64, one thread, Zen 4):
+/// the `gemm` crate is 1.3–1.4× faster on the (64, 64) layers' forward and input-gradient
+/// products and 2–9× on a thin output layer's forward (it packs less), while
+/// `matrixmultiply` is 7× faster on the input gradient of a 2-wide output (`k` = 2).
+const GEMM_CRATE_MIN_K: usize = 5;
 
 /// `C = A·B + β·C`: `A` is `[m, k]` read with row stride `rsa` and column stride `csa`, `B`
-/// is `[k, n]` with strides `(rsb, csb)`, `C` is `[m, n]` row-major.
+/// is `[k, n]` with strides `(rsb, csb)`, `C` is `[m, n]` row-major. One thread, so each
+/// call's result depends only on its operands and the CPU's kernels.
 fn gemm(
     (m, k, n): (usize, usize, usize),
     a: &[f32],
@@ -98,11 +220,39 @@ fn gemm(
             (rows - 1) * rs + (cols - 1) * cs + 1
         }
     };
-    // the bounds `sgemm` relies on; our callers size every buffer from the same dims
+    // the bounds both kernels rely on; our callers size every buffer from the same dims
     assert!(a.len() >= last(m, k, rsa, csa) && b.len() >= last(k, n, rsb, csb));
     assert!(c.len() >= m * n);
-    // SAFETY: the asserts above keep every element sgemm reads or writes inside the slices;
-    // `c` does not alias `a` or `b` (it is borrowed mutably).
+    if k >= GEMM_CRATE_MIN_K {
+        // SAFETY: the asserts above keep every element read or written inside the slices;
+        // `c` does not alias `a` or `b` (it is borrowed mutably). The `gemm` crate computes
+        // `dst = alpha·dst + beta·lhs·rhs`, reading `dst` only when asked to.
+        unsafe {
+            gemm::gemm(
+                m,
+                n,
+                k,
+                c.as_mut_ptr(),
+                1,
+                n as isize,
+                beta != 0.0,
+                a.as_ptr(),
+                csa as isize,
+                rsa as isize,
+                b.as_ptr(),
+                csb as isize,
+                rsb as isize,
+                beta,
+                1.0,
+                false,
+                false,
+                false,
+                gemm::Parallelism::None,
+            )
+        }
+        return;
+    }
+    // SAFETY: as above.
     unsafe {
         matrixmultiply::sgemm(
             m,
@@ -243,13 +393,7 @@ impl Weights<'_> {
                 &mut grads[w..b],
             );
             // ∂L/∂b = column sums of δ
-            let db = &mut grads[b..layer.end()];
-            db.fill(0.0);
-            for row in current.chunks_exact(layer.output) {
-                for (g, d) in db.iter_mut().zip(row) {
-                    *g += d;
-                }
-            }
+            column_sums(current, &mut grads[b..layer.end()]);
             if l > 0 {
                 // δ of the layer below: δ · Wᵀ, then through tanh, ⊙ (1 − a²)
                 below.resize(n * layer.input, 0.0);
@@ -262,9 +406,7 @@ impl Weights<'_> {
                     0.0,
                     below,
                 );
-                for (d, a) in below.iter_mut().zip(input) {
-                    *d *= 1.0 - a * a;
-                }
+                times_tanh_derivative(below, input);
                 std::mem::swap(current, below);
             }
         }
@@ -311,14 +453,7 @@ impl Weights<'_> {
             }
             let d_bias = &tangent[layer.bias()..layer.end()];
             if l + 1 < self.layers.len() {
-                for (row, a_row) in current
-                    .chunks_exact_mut(layer.output)
-                    .zip(acts[l].chunks_exact(layer.output))
-                {
-                    for ((h, db), a) in row.iter_mut().zip(d_bias).zip(a_row) {
-                        *h = (*h + db) * (1.0 - a * a);
-                    }
-                }
+                bias_times_tanh_derivative(current, d_bias, &acts[l]);
             } else {
                 add_bias(current, d_bias);
             }
@@ -453,15 +588,6 @@ impl HostNet {
             for (g, p) in self.grads.iter_mut().zip(&part.grads) {
                 *g += p;
             }
-        }
-    }
-}
-
-/// `row + bias` for each `[width]` row of `rows` (`[n, width]`).
-fn add_bias(rows: &mut [f32], bias: &[f32]) {
-    for row in rows.chunks_exact_mut(bias.len()) {
-        for (v, b) in row.iter_mut().zip(bias) {
-            *v += b;
         }
     }
 }

@@ -11,6 +11,7 @@ use burn::tensor::backend::Backend;
 use rand::Rng;
 use rand_distr::StandardNormal;
 
+use crate::host_net::{add_bias, bias_tanh, rows_times_weight};
 use crate::mlp::Mlp;
 use crate::policy::{ActionKind, MlpPolicy};
 use crate::value::ValueNet;
@@ -32,7 +33,7 @@ struct HostLayer {
 /// environment). It differs from the update's `HostNet` (module `host_net`), which holds the
 /// same layers for batches of thousands of rows with reverse and tangent passes split over
 /// threads: here a call costs microseconds and must allocate nothing, so it is plain row
-/// loops over one scratch pair. Both are built from [`Mlp::host_layers`];
+/// loops over one scratch pair (a matrix product's packing would cost more than the call). Both are built from [`Mlp::host_layers`];
 /// `host_net`'s test `the_three_forms_of_the_mlp_compute_the_same_function` checks that they
 /// agree with Burn's module.
 #[derive(Debug, Clone)]
@@ -80,19 +81,11 @@ impl HostMlp {
         for (k, layer) in self.layers.iter().enumerate() {
             b.clear();
             b.resize(n * layer.output, 0.0);
-            for r in 0..n {
-                let row_in = &a[r * layer.input..(r + 1) * layer.input];
-                let row_out = &mut b[r * layer.output..(r + 1) * layer.output];
-                row_out.copy_from_slice(&layer.bias);
-                for (i, &xi) in row_in.iter().enumerate() {
-                    let w = &layer.weight[i * layer.output..(i + 1) * layer.output];
-                    for (o, &wij) in row_out.iter_mut().zip(w) {
-                        *o += xi * wij;
-                    }
-                }
-                if k < last {
-                    row_out.iter_mut().for_each(|v| *v = v.tanh());
-                }
+            rows_times_weight(&a[..n * layer.input], &layer.weight, layer.input, b);
+            if k < last {
+                bias_tanh(b, &layer.bias);
+            } else {
+                add_bias(b, &layer.bias);
             }
             std::mem::swap(a, b);
         }
