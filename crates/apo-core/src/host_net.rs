@@ -120,13 +120,43 @@ widest_simd! {
     pub(crate) fn add_bias = add_bias_body(rows: &mut [f32], bias: &[f32])
 }
 
+/// `row_out[start..start + C] += row_in · W[:, start..start + C]` with the chunk in a
+/// fixed-size accumulator, which the compiler keeps in vector registers over the whole sum.
+#[inline(always)]
+fn add_chunk<const C: usize>(row_in: &[f32], weight: &[f32], start: usize, row_out: &mut [f32]) {
+    let output = row_out.len();
+    let mut acc = [0.0f32; C];
+    acc.copy_from_slice(&row_out[start..start + C]);
+    for (&xi, w) in row_in.iter().zip(weight.chunks_exact(output)) {
+        let w = &w[start..start + C];
+        for j in 0..C {
+            acc[j] += xi * w[j];
+        }
+    }
+    row_out[start..start + C].copy_from_slice(&acc);
+}
+
 #[inline(always)]
 fn rows_times_weight_body(x: &[f32], weight: &[f32], input: usize, out: &mut [f32]) {
     let output = weight.len() / input.max(1);
+    if output == 0 {
+        return;
+    }
     for (row_in, row_out) in x.chunks_exact(input).zip(out.chunks_exact_mut(output)) {
-        for (&xi, w) in row_in.iter().zip(weight.chunks_exact(output)) {
-            for (o, &wij) in row_out.iter_mut().zip(w) {
-                *o += xi * wij;
+        let mut start = 0;
+        while start + 64 <= output {
+            add_chunk::<64>(row_in, weight, start, row_out);
+            start += 64;
+        }
+        while start + 16 <= output {
+            add_chunk::<16>(row_in, weight, start, row_out);
+            start += 16;
+        }
+        if start < output {
+            for (&xi, w) in row_in.iter().zip(weight.chunks_exact(output)) {
+                for (o, &wij) in row_out[start..].iter_mut().zip(&w[start..]) {
+                    *o += xi * wij;
+                }
             }
         }
     }
@@ -135,8 +165,9 @@ fn rows_times_weight_body(x: &[f32], weight: &[f32], input: usize, out: &mut [f3
 widest_simd! {
     /// `out += x·W` row by row, for a few rows: `x` is `[n, input]`, `W` `[input, output]`
     /// (row-major, a few kilobytes that stay in L1), `out` `[n, output]`. Each row of `out` is
-    /// a sum of `W`'s rows scaled by `x`'s, a loop over `output` contiguous floats; no packing,
-    /// which would cost more than a rollout's policy call.
+    /// a sum of `W`'s rows scaled by `x`'s, accumulated in chunks of 64 and 16 columns held in
+    /// registers (pad `output` to a multiple of 16 to use only those), each sum in input
+    /// order; no packing, which would cost more than a rollout's policy call.
     pub(crate) fn rows_times_weight = rows_times_weight_body(
         x: &[f32],
         weight: &[f32],
@@ -204,7 +235,7 @@ const GEMM_CRATE_MIN_K: usize = 5;
 /// `C = A·B + β·C`: `A` is `[m, k]` read with row stride `rsa` and column stride `csa`, `B`
 /// is `[k, n]` with strides `(rsb, csb)`, `C` is `[m, n]` row-major. One thread, so each
 /// call's result depends only on its operands and the CPU's kernels.
-fn gemm(
+pub(crate) fn gemm(
     (m, k, n): (usize, usize, usize),
     a: &[f32],
     (rsa, csa): (usize, usize),
@@ -726,12 +757,20 @@ mod tests {
             .iter::<f32>()
             .collect();
         let layers = mlp.host_layers();
-        let host_mlp = crate::inference::HostMlp::from_mlp(&mlp)
-            .forward(&x, n)
-            .to_vec();
+        let mut host_mlp = crate::inference::HostMlp::from_mlp(&mlp);
+        // row loops below 32 rows, one matrix product per layer from there on
+        let host_mlp_rows: Vec<f32> = x
+            .chunks(input * 8)
+            .flat_map(|rows| host_mlp.forward(rows, rows.len() / input).to_vec())
+            .collect();
+        let host_mlp_batched = host_mlp.forward(&x, n).to_vec();
         let mut net = HostNet::new(&layers).expect("shapes chain");
         let host_net = forward_all(&mut net, &x);
-        for (form, out) in [("HostMlp", &host_mlp), ("HostNet", &host_net)] {
+        for (form, out) in [
+            ("HostMlp, 8 rows a call", &host_mlp_rows),
+            ("HostMlp, 40 rows a call", &host_mlp_batched),
+            ("HostNet", &host_net),
+        ] {
             assert_eq!(out.len(), burn.len(), "{form}");
             let err = rel_err(&widen(out), &widen(&burn));
             assert!(err <= 1e-5, "{form} differs from Burn's Mlp by {err:e}");

@@ -11,31 +11,50 @@ use burn::tensor::backend::Backend;
 use rand::Rng;
 use rand_distr::StandardNormal;
 
-use crate::host_net::{add_bias, bias_tanh, rows_times_weight};
+use crate::host_net::{add_bias, bias_tanh, gemm, rows_times_weight};
 use crate::mlp::Mlp;
 use crate::policy::{ActionKind, MlpPolicy};
 use crate::value::ValueNet;
 
+/// From this many rows on (the critic's values over a finished path), a layer is one matrix
+/// product, whose packing the rows amortize; below it (the policy's call, a row per
+/// environment), plain row loops.
+const BATCHED_ROWS: usize = 32;
+
 /// `0.5 * ln(2π)`.
 const HALF_LN_2PI: f32 = 0.918_938_5;
 
+/// Outputs are padded with zero columns to a multiple of this many lanes, so that the row
+/// loops run on fixed-size chunks the compiler keeps in vector registers (an AVX-512 register
+/// holds 16 `f32`).
+const LANES: usize = 16;
+
+/// One layer with its output padded to `width` columns: the padding's weights and biases are
+/// zero, so its activations are `tanh(0) = 0`, and the next layer's rows for them are zero too.
 #[derive(Debug, Clone)]
 struct HostLayer {
-    /// `[input, output]`, row-major.
+    /// `[input, width]`, row-major.
     weight: Vec<f32>,
-    /// `[output]`.
+    /// `[width]`.
     bias: Vec<f32>,
+    /// The rows of `weight`: the observation width for the first layer, else the layer
+    /// below's `width`.
     input: usize,
+    /// The true output width.
     output: usize,
+    /// `output` rounded up to a multiple of [`LANES`].
+    width: usize,
 }
 
 /// A host copy of an [`Mlp`] for the rollout's forward pass, a few rows per call (one per
 /// environment). It differs from the update's `HostNet` (module `host_net`), which holds the
 /// same layers for batches of thousands of rows with reverse and tangent passes split over
 /// threads: here a call costs microseconds and must allocate nothing, so it is plain row
-/// loops over one scratch pair (a matrix product's packing would cost more than the call). Both are built from [`Mlp::host_layers`];
-/// `host_net`'s test `the_three_forms_of_the_mlp_compute_the_same_function` checks that they
-/// agree with Burn's module.
+/// loops over one scratch pair (a matrix product's packing would cost more than the call),
+/// or one product per layer from 32 rows on (the critic over a finished path). Both are built
+/// from [`Mlp::host_layers`]; `host_net`'s test
+/// `the_three_forms_of_the_mlp_compute_the_same_function` checks that they agree with Burn's
+/// module, row by row and batched.
 #[derive(Debug, Clone)]
 pub struct HostMlp {
     layers: Vec<HostLayer>,
@@ -45,16 +64,29 @@ pub struct HostMlp {
 impl HostMlp {
     /// Copies `mlp`'s weights to the host.
     pub fn from_mlp<B: Backend>(mlp: &Mlp<B>) -> Self {
-        let layers = mlp
-            .host_layers()
-            .into_iter()
-            .map(|(weight, bias)| HostLayer {
-                input: weight.len() / bias.len(),
-                output: bias.len(),
-                weight,
-                bias,
-            })
-            .collect();
+        let mut layers: Vec<HostLayer> = Vec::new();
+        for (weight, bias) in mlp.host_layers() {
+            let output = bias.len();
+            let true_input = weight.len() / output.max(1);
+            let input = layers.last().map_or(true_input, |below| below.width);
+            let width = output.div_ceil(LANES) * LANES;
+            let mut padded = vec![0.0; input * width];
+            for (row, from) in padded
+                .chunks_exact_mut(width)
+                .zip(weight.chunks_exact(output))
+            {
+                row[..output].copy_from_slice(from);
+            }
+            let mut padded_bias = vec![0.0; width];
+            padded_bias[..output].copy_from_slice(&bias);
+            layers.push(HostLayer {
+                weight: padded,
+                bias: padded_bias,
+                input,
+                output,
+                width,
+            });
+        }
         Self {
             layers,
             scratch: [Vec::new(), Vec::new()],
@@ -80,14 +112,36 @@ impl HostMlp {
         a.extend_from_slice(x);
         for (k, layer) in self.layers.iter().enumerate() {
             b.clear();
-            b.resize(n * layer.output, 0.0);
-            rows_times_weight(&a[..n * layer.input], &layer.weight, layer.input, b);
+            b.resize(n * layer.width, 0.0);
+            let x = &a[..n * layer.input];
+            if n >= BATCHED_ROWS {
+                let shape = (n, layer.input, layer.width);
+                gemm(
+                    shape,
+                    x,
+                    (layer.input, 1),
+                    &layer.weight,
+                    (layer.width, 1),
+                    0.0,
+                    b,
+                );
+            } else {
+                rows_times_weight(x, &layer.weight, layer.input, b);
+            }
             if k < last {
                 bias_tanh(b, &layer.bias);
             } else {
                 add_bias(b, &layer.bias);
             }
             std::mem::swap(a, b);
+        }
+        // drop the output's padding: row r moves from r·width to r·output (never forwards)
+        if let Some(width) = self.layers.last().map(|l| l.width) {
+            if width != output {
+                for r in 0..n {
+                    a.copy_within(r * width..r * width + output, r * output);
+                }
+            }
         }
         &a[..n * output]
     }
