@@ -109,6 +109,8 @@ pub struct RolloutBuffer {
     gamma: f64,
     lambda: f64,
     batch: Batch,
+    /// The steps a batch has room for from the start.
+    capacity: usize,
     rewards: Vec<f32>,
     path_start: usize,
     /// Paths ended by [`RolloutBuffer::end_path`] and not yet finished: where each ends, and
@@ -121,7 +123,22 @@ pub struct RolloutBuffer {
 impl RolloutBuffer {
     /// An empty buffer with room for `capacity` steps.
     pub fn new(layout: BufferLayout, gamma: f64, lambda: f64, capacity: usize) -> Self {
-        let batch = Batch {
+        Self {
+            layout,
+            gamma,
+            lambda,
+            batch: Self::empty_batch(layout, capacity),
+            capacity,
+            rewards: Vec::with_capacity(capacity),
+            path_start: 0,
+            pending: Vec::new(),
+            bootstrap_obs: Vec::new(),
+        }
+    }
+
+    /// An empty batch with room for `capacity` steps of `layout`.
+    fn empty_batch(layout: BufferLayout, capacity: usize) -> Batch {
+        Batch {
             len: 0,
             obs: Vec::with_capacity(capacity * layout.observation_dim),
             actions: Vec::with_capacity(capacity * layout.action_width),
@@ -132,16 +149,6 @@ impl RolloutBuffer {
             adv: Vec::with_capacity(capacity),
             ret: Vec::with_capacity(capacity),
             adv_scale: 1.0,
-        };
-        Self {
-            layout,
-            gamma,
-            lambda,
-            batch,
-            rewards: Vec::with_capacity(capacity),
-            path_start: 0,
-            pending: Vec::new(),
-            bootstrap_obs: Vec::new(),
         }
     }
 
@@ -313,7 +320,10 @@ impl RolloutBuffer {
                 buffer.path_len() == 0 && buffer.pending.is_empty(),
                 "take() with an unfinished path"
             );
-            let part = std::mem::take(&mut buffer.batch);
+            // the next epoch's steps go into a batch with room for them (growing one step by
+            // step would copy it about twice over)
+            let room = RolloutBuffer::empty_batch(buffer.layout, buffer.capacity);
+            let part = std::mem::replace(&mut buffer.batch, room);
             buffer.rewards.clear();
             buffer.path_start = 0;
             if batch.len == 0 {

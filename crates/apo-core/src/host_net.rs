@@ -741,7 +741,7 @@ mod tests {
         use burn::backend::NdArray;
         use burn::tensor::{Tensor, TensorData};
         let device = Default::default();
-        let (input, hidden, output, n) = (5, [16, 8], 3, 40);
+        let (input, hidden, output, n) = (5, [16, 8], 3, 2500);
         <NdArray as burn::tensor::backend::Backend>::seed(&device, 3);
         let mlp = crate::mlp::Mlp::<NdArray>::new(input, &hidden, output, &device);
         let mut rng = rand::rngs::StdRng::seed_from_u64(4);
@@ -758,17 +758,22 @@ mod tests {
             .collect();
         let layers = mlp.host_layers();
         let mut host_mlp = crate::inference::HostMlp::from_mlp(&mlp);
-        // row loops below 32 rows, one matrix product per layer from there on
-        let host_mlp_rows: Vec<f32> = x
-            .chunks(input * 8)
-            .flat_map(|rows| host_mlp.forward(rows, rows.len() / input).to_vec())
-            .collect();
-        let host_mlp_batched = host_mlp.forward(&x, n).to_vec();
+        // row loops below 32 rows, one matrix product per layer from there on, and from
+        // 2 048 rows on parts of the rows in parallel (here 2 parts)
+        let mut calls_of = |rows_per_call: usize| -> Vec<f32> {
+            x.chunks(input * rows_per_call)
+                .flat_map(|rows| host_mlp.forward(rows, rows.len() / input).to_vec())
+                .collect()
+        };
+        let host_mlp_rows = calls_of(8);
+        let host_mlp_batched = calls_of(40);
+        let host_mlp_parts = calls_of(n);
         let mut net = HostNet::new(&layers).expect("shapes chain");
         let host_net = forward_all(&mut net, &x);
         for (form, out) in [
             ("HostMlp, 8 rows a call", &host_mlp_rows),
             ("HostMlp, 40 rows a call", &host_mlp_batched),
+            ("HostMlp, 2 500 rows in 2 parts", &host_mlp_parts),
             ("HostNet", &host_net),
         ] {
             assert_eq!(out.len(), burn.len(), "{form}");

@@ -21,6 +21,16 @@ use crate::value::ValueNet;
 /// environment), plain row loops.
 const BATCHED_ROWS: usize = 32;
 
+/// From this many rows on (the critic over a whole epoch's path), the rows are cut into parts
+/// of at least [`ROWS_PER_PART`] consecutive rows, at most [`MAX_PARTS`], computed in parallel
+/// on rayon's pool. The cut depends on the number of rows only, so the values do not depend on
+/// the number of threads.
+const PARALLEL_ROWS: usize = 2 * ROWS_PER_PART;
+/// See [`PARALLEL_ROWS`].
+const ROWS_PER_PART: usize = 1024;
+/// See [`PARALLEL_ROWS`].
+const MAX_PARTS: usize = 8;
+
 /// `0.5 * ln(2π)`.
 const HALF_LN_2PI: f32 = 0.918_938_5;
 
@@ -51,7 +61,8 @@ struct HostLayer {
 /// same layers for batches of thousands of rows with reverse and tangent passes split over
 /// threads: here a call costs microseconds and must allocate nothing, so it is plain row
 /// loops over one scratch pair (a matrix product's packing would cost more than the call),
-/// or one product per layer from 32 rows on (the critic over a finished path). Both are built
+/// or one product per layer from 32 rows on (the critic over a finished path), with the rows
+/// cut into parts run on rayon's threads from 2 048 rows on (a whole epoch's path). Both are built
 /// from [`Mlp::host_layers`]; `host_net`'s test
 /// `the_three_forms_of_the_mlp_compute_the_same_function` checks that they agree with Burn's
 /// module, row by row and batched.
@@ -59,6 +70,10 @@ struct HostLayer {
 pub struct HostMlp {
     layers: Vec<HostLayer>,
     scratch: [Vec<f32>; 2],
+    /// One scratch pair per part of a batch of [`PARALLEL_ROWS`] rows or more.
+    parts: Vec<[Vec<f32>; 2]>,
+    /// The parts' outputs side by side, `[n, output]`.
+    out: Vec<f32>,
 }
 
 impl HostMlp {
@@ -90,6 +105,8 @@ impl HostMlp {
         Self {
             layers,
             scratch: [Vec::new(), Vec::new()],
+            parts: Vec::new(),
+            out: Vec::new(),
         }
     }
 
@@ -105,46 +122,78 @@ impl HostMlp {
 
     /// `x: [n, input]` → `[n, output]`, borrowed from internal scratch space.
     pub fn forward(&mut self, x: &[f32], n: usize) -> &[f32] {
-        let last = self.layers.len() - 1;
-        let output = self.output();
-        let [a, b] = &mut self.scratch;
-        a.clear();
-        a.extend_from_slice(x);
-        for (k, layer) in self.layers.iter().enumerate() {
-            b.clear();
-            b.resize(n * layer.width, 0.0);
-            let x = &a[..n * layer.input];
-            if n >= BATCHED_ROWS {
-                let shape = (n, layer.input, layer.width);
-                gemm(
-                    shape,
-                    x,
-                    (layer.input, 1),
-                    &layer.weight,
-                    (layer.width, 1),
-                    0.0,
-                    b,
-                );
-            } else {
-                rows_times_weight(x, &layer.weight, layer.input, b);
-            }
-            if k < last {
-                bias_tanh(b, &layer.bias);
-            } else {
-                add_bias(b, &layer.bias);
-            }
-            std::mem::swap(a, b);
+        if n < PARALLEL_ROWS {
+            return forward_rows(&self.layers, x, n, &mut self.scratch);
         }
-        // drop the output's padding: row r moves from r·width to r·output (never forwards)
-        if let Some(width) = self.layers.last().map(|l| l.width) {
-            if width != output {
-                for r in 0..n {
-                    a.copy_within(r * width..r * width + output, r * output);
-                }
-            }
+        use rayon::prelude::*;
+        let (input, output) = (self.input(), self.output());
+        let parts = (n / ROWS_PER_PART).clamp(1, MAX_PARTS);
+        self.parts.resize_with(parts, Default::default);
+        let layers = &self.layers;
+        self.parts
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, scratch)| {
+                let rows = i * n / parts..(i + 1) * n / parts;
+                let x = &x[rows.start * input..rows.end * input];
+                forward_rows(layers, x, rows.len(), scratch);
+            });
+        self.out.clear();
+        for (i, [a, _]) in self.parts.iter().enumerate() {
+            let rows = (i + 1) * n / parts - i * n / parts;
+            self.out.extend_from_slice(&a[..rows * output]);
         }
-        &a[..n * output]
+        &self.out
     }
+}
+
+/// `layers`' forward pass over `x: [n, input]` → `[n, output]`, in `scratch`: row loops below
+/// [`BATCHED_ROWS`] rows, one matrix product per layer from there on.
+fn forward_rows<'s>(
+    layers: &[HostLayer],
+    x: &[f32],
+    n: usize,
+    scratch: &'s mut [Vec<f32>; 2],
+) -> &'s [f32] {
+    let last = layers.len() - 1;
+    let output = layers.last().map_or(0, |l| l.output);
+    let [a, b] = scratch;
+    a.clear();
+    a.extend_from_slice(x);
+    for (k, layer) in layers.iter().enumerate() {
+        b.clear();
+        b.resize(n * layer.width, 0.0);
+        let x = &a[..n * layer.input];
+        if n >= BATCHED_ROWS {
+            let shape = (n, layer.input, layer.width);
+            gemm(
+                shape,
+                x,
+                (layer.input, 1),
+                &layer.weight,
+                (layer.width, 1),
+                0.0,
+                b,
+            );
+        } else {
+            rows_times_weight(x, &layer.weight, layer.input, b);
+        }
+        if k < last {
+            bias_tanh(b, &layer.bias);
+        } else {
+            add_bias(b, &layer.bias);
+        }
+        std::mem::swap(a, b);
+    }
+    // drop the output's padding: row r moves from r·width to r·output (never forwards)
+    if let Some(width) = layers.last().map(|l| l.width) {
+        if width != output {
+            for r in 0..n {
+                a.copy_within(r * width..r * width + output, r * output);
+            }
+        }
+    }
+    &a[..n * output]
 }
 
 /// Per-step outputs of [`HostPolicy::act`], preallocated for `n` rows.

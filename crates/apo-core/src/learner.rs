@@ -18,6 +18,7 @@ use crate::algorithm::{AlgoConfig, ConfigError, PolicyStep};
 use crate::buffer::Batch;
 use crate::collective::Comm;
 use crate::flat::{flatten, from_host, to_host, unflatten};
+use crate::host_head::HostHead;
 use crate::host_proximal::host_proximal_update;
 use crate::kernels::Kernels;
 use crate::objective::{Multipliers, Objective};
@@ -299,7 +300,15 @@ where
             self.family.init::<B>(&self.device),
             from_host::<B>(&theta, &self.device),
         );
-        let dist = before.distribution(tb.obs.clone());
+        // the diagnostics' forward passes over the batch, on the host kernels when chosen
+        let mut host = match self.kernels {
+            Kernels::Host => HostHead::of(&before),
+            Kernels::Backend => None,
+        };
+        let dist = match &mut host {
+            Some(head) => head.distribution::<B>(&batch.obs, &self.device).0,
+            None => before.distribution(tb.obs.clone()),
+        };
         check_distribution::<B, F::Policy<B>>(&dist, batch.len, self.action)?;
         let entropy = to_host(self.comm.mean(dist.entropy()))[0];
         let terms = objective.evaluate(&dist, &tb);
@@ -358,9 +367,15 @@ where
             }
         };
         let policy_update_s = start.elapsed().as_secs_f64();
-        let after = self
-            .policy_on::<B>(&self.device)
-            .distribution(tb.obs.clone());
+        let after = match &mut host {
+            Some(head) => {
+                head.set_params(&self.policy_params());
+                head.distribution::<B>(&batch.obs, &self.device).0
+            }
+            None => self
+                .policy_on::<B>(&self.device)
+                .distribution(tb.obs.clone()),
+        };
         let kl = to_host(self.comm.mean(after.kl_from(&tb.dist_old)))[0];
         // the switch's diagnostics exist for APO and PAPO only
         let terms_after = matches!(objective, Objective::Apo(_) | Objective::Papo { .. })

@@ -111,6 +111,7 @@ pub mod collective;
 pub mod distribution;
 pub mod fisher;
 pub mod flat;
+mod host_head;
 mod host_net;
 mod host_proximal;
 pub mod hvp;

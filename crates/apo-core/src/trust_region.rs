@@ -18,13 +18,20 @@
 //! With several ranks ([`crate::collective`]) the gradient and every product `F v` are summed
 //! over the ranks' shares, and the line search's KL and objective are means over every rank's
 //! batch: conjugate gradient and the line search run in lockstep, on bitwise equal vectors.
+//!
+//! With [`Kernels::Host`] and a policy with a host form, the network's passes of the products,
+//! of the gradient and of every line-search try run on apo-core's `f32` host kernels
+//! ([`crate::fisher`], `crate::host_head`); the objective and the KL stay Burn's, evaluated on
+//! the network's output.
 
 use burn::backend::Autodiff;
 use burn::tensor::backend::Backend;
 use serde::{Deserialize, Serialize};
 
+use crate::distribution::DistParams;
 use crate::fisher::FisherOperator;
 use crate::flat::{from_host, to_host, unflatten};
+use crate::host_head::HostHead;
 use crate::hvp::gradient;
 use crate::kernels::Kernels;
 use crate::objective::Objective;
@@ -313,9 +320,17 @@ where
 {
     let device = batch.adv.device();
     let policy = unflatten(family.init::<B>(&device), from_host::<B>(theta, &device));
-    let dist = policy.distribution(batch.obs.clone());
+    kl_and_objective(objective, &policy.distribution(batch.obs.clone()), batch)
+}
+
+/// Mean KL(π_j ‖ π) and the objective of the distributions `dist` over `batch`'s states.
+fn kl_and_objective<B: Backend>(
+    objective: &Objective,
+    dist: &DistParams<B>,
+    batch: &TensorBatch<B>,
+) -> (f64, f64) {
     let kl = batch.comm.mean(dist.kl_from(&batch.dist_old));
-    let obj = objective.evaluate(&dist, batch).objective;
+    let obj = objective.evaluate(dist, batch).objective;
     (to_host(kl)[0], to_host(obj)[0])
 }
 
@@ -335,12 +350,31 @@ where
 {
     let device = batch.adv.device();
     let batch1 = batch.lift::<Autodiff<B>>();
-    let (objective_before, mut g) =
-        gradient(&family.init::<Autodiff<B>>(&device), theta, &device, |p| {
+    // the network's passes on the host: the policy at θ_j and the batch's states `[N, ·]`
+    let mut host = match kernels {
+        Kernels::Host => {
+            let policy = unflatten(family.init::<B>(&device), from_host::<B>(theta, &device));
+            HostHead::of(&policy).map(|head| {
+                let obs: Vec<f32> = batch.obs.clone().into_data().iter::<f32>().collect();
+                (head, obs)
+            })
+        }
+        Kernels::Backend => None,
+    };
+    let (objective_before, mut g) = match &mut host {
+        Some((head, obs)) => {
+            let (dist, leaves) = head.distribution::<Autodiff<B>>(obs, &device);
+            let value = objective.evaluate(&dist, &batch1).objective;
+            let grads = value.backward();
+            let g = head.gradient(obs, leaves, &grads);
+            (to_host(value)[0], g.iter().map(|&x| f64::from(x)).collect())
+        }
+        None => gradient(&family.init::<Autodiff<B>>(&device), theta, &device, |p| {
             objective
                 .evaluate(&p.distribution(batch1.obs.clone()), &batch1)
                 .objective
-        });
+        }),
+    };
     let comm = &batch.comm;
     comm.sum(&mut g);
     // the Fisher operator averages over this rank's rows: its share of the global mean
@@ -398,7 +432,13 @@ where
             .zip(&full_step)
             .map(|(t, s)| t + fraction * s)
             .collect();
-        let (kl, objective_after) = evaluate(family, objective, &candidate, batch);
+        let (kl, objective_after) = match &mut host {
+            Some((head, obs)) => {
+                head.set_params(&candidate);
+                kl_and_objective(objective, &head.distribution::<B>(obs, &device).0, batch)
+            }
+            None => evaluate(family, objective, &candidate, batch),
+        };
         let improved = match config.acceptance {
             Acceptance::Improvement => objective_after >= objective_before,
             Acceptance::Ratio => {

@@ -294,6 +294,15 @@ impl RunningMeanStd {
         }
         let count = n as f64;
         let total = self.count + count;
+        if n == 1 {
+            // one vector is its own mean with variance 0: the same merge, without the
+            // strided column passes, so that it vectorizes (the rollout's case, every step)
+            for ((mean, var), x) in self.mean.iter_mut().zip(&mut self.var).zip(batch) {
+                merge_one(mean, var, self.count, f64::from(*x), 0.0, count, total);
+            }
+            self.count = total;
+            return;
+        }
         for (d, (mean, var)) in self.mean.iter_mut().zip(&mut self.var).enumerate() {
             let column = || batch[d..].iter().step_by(dim).map(|x| f64::from(*x));
             let batch_mean = column().sum::<f64>() / count;

@@ -222,6 +222,27 @@ fn running_mean_std_merging_batches_equals_one_batch() {
     ));
 }
 
+/// The rollout adds one observation per step; that path must be the same arithmetic as
+/// merging the statistics of that one vector (its mean is itself, its variance 0), bit for bit,
+/// so that a run's normalization does not depend on which path computed it.
+#[test]
+fn running_mean_std_one_vector_is_the_merge_of_its_own_statistics_exactly() {
+    let dim = 5;
+    let data = batch(300, dim, -3.0);
+    let (mut rows, mut merged) = (RunningMeanStd::new(dim), RunningMeanStd::new(dim));
+    for row in data.chunks(dim) {
+        rows.update(row, 1);
+        let mean = row.iter().map(|x| f64::from(*x)).collect();
+        let own = RunningMeanStd::from_moments(mean, vec![0.0; dim], 1.0).expect("same length");
+        merged.merge(&own).expect("same dimension");
+        assert_eq!(rows, merged);
+    }
+    assert_eq!(rows.count(), 300.0);
+    let (mean, var) = two_pass(&data, dim, 2);
+    close(rows.mean()[2], mean, 1e-10, "mean[2]");
+    close(rows.var()[2], var, 1e-9, "var[2]");
+}
+
 #[test]
 fn running_mean_std_normalizes_and_clips_in_place() {
     let mut rms = RunningMeanStd::new(2);
