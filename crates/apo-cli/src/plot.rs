@@ -18,7 +18,6 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use apo_train::progress_csv::{self, ProgressRow};
-use apo_train::run_config::RunConfig;
 
 /// Options of [`plot`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -127,7 +126,7 @@ impl Run {
     /// Reads the run in `dir` (`config.toml`, `progress.csv`) and smooths its curves.
     fn load(dir: &Path, smooth: usize, column_name: Option<&str>) -> anyhow::Result<Self> {
         let context = || format!("cannot plot the run in {}", dir.display());
-        let config = RunConfig::load(&dir.join("config.toml")).with_context(context)?;
+        let config = apo_train::run_dir::load_config(dir)?;
         let rows = apo_train::run_dir::progress_of(dir)
             .and_then(|path| progress_csv::read_rows_with_non_finite(&path))
             .with_context(context)?;
@@ -178,8 +177,7 @@ impl Run {
     /// that have it and an episode in it; steps are their mean.
     fn seeds(label: &str, dirs: &[PathBuf], smooth: usize) -> anyhow::Result<Self> {
         let first = dirs.first().context("a group without runs")?;
-        let config = RunConfig::load(&first.join("config.toml"))
-            .with_context(|| format!("cannot plot the run in {}", first.display()))?;
+        let config = apo_train::run_dir::load_config(first)?;
         let runs = dirs
             .iter()
             .map(|dir| {

@@ -36,7 +36,6 @@ use rand::{Rng, SeedableRng};
 use crate::stats::{self, Analysis, Comparison, Scores, StratifiedBootstrap};
 use crate::summary::{mean_std, summarize_rows, RunSummary};
 use apo_train::progress_csv;
-use apo_train::run_config::RunConfig;
 use apo_train::run_dir;
 
 /// A value over seeds.
@@ -275,8 +274,7 @@ pub fn report(
     // a run's identity is what it learned with, not its path: a copy counts once
     let mut identities: BTreeMap<BTreeMap<String, String>, PathBuf> = BTreeMap::new();
     for dir in runs {
-        let config = RunConfig::load(&dir.join(run_dir::CONFIG))
-            .with_context(|| format!("{} is not a run directory", dir.display()))?;
+        let config = run_dir::load_config(dir)?;
         // a run is reported with the config it learned with
         apo_train::checkpoint::check_bound(dir, &config)
             .with_context(|| format!("run {}", dir.display()))?;

@@ -395,6 +395,7 @@ pub fn submit(
     slurm: &SlurmOptions,
 ) -> anyhow::Result<SubmitOutcome> {
     check_sbatch_options(&slurm.sbatch)?;
+    sweep::check_run_names(&options.out, runs)?;
     check_slurm()?;
     let out = std::path::absolute(&options.out)
         .with_context(|| format!("the absolute path of {}", options.out.display()))?;
@@ -576,6 +577,28 @@ pub fn standings(
     Ok(found)
 }
 
+/// Whether Slurm has requeued the job `job` since this task started: its restart count
+/// (`Restarts=` of `scontrol show job`) is above the one the task started with
+/// (`SLURM_RESTART_COUNT`, unset before the first requeue).
+fn requeued_since_start(job: &str) -> bool {
+    let before: u64 = std::env::var("SLURM_RESTART_COUNT")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
+    let Ok(shown) = Command::new("scontrol")
+        .args(["show", "job", job, "-o"])
+        .stdin(Stdio::null())
+        .output()
+    else {
+        return false;
+    };
+    String::from_utf8_lossy(&shown.stdout)
+        .split_whitespace()
+        .find_map(|field| field.strip_prefix("Restarts="))
+        .and_then(|n| n.parse::<u64>().ok())
+        .is_some_and(|n| n > before)
+}
+
 /// The error the task of `submission` ended on: the last `error:` line of its output when no
 /// line after it says the run was stopped by a signal (and checkpointed); `None` otherwise.
 fn task_error(out: &Path, submission: &Submission) -> Option<String> {
@@ -709,7 +732,14 @@ pub fn task(
             .stdin(Stdio::null())
             .output()
             .context("running scontrol requeue")?;
-        if !done.status.success() {
+        // Slurm ends a job's processes as it requeues the job, so the `scontrol` run from inside
+        // it may be ended by that signal before it reports its success: the job's restart count
+        // tells whether the requeue took place
+        let ended_by_the_requeue = || {
+            use std::os::unix::process::ExitStatusExt;
+            done.status.signal().is_some() && requeued_since_start(&job)
+        };
+        if !done.status.success() && !ended_by_the_requeue() {
             bail!(
                 "scontrol requeue {job} failed ({}): {}; the run stopped at its checkpoint and the next \
                  submission of the sweep resumes it",

@@ -564,13 +564,8 @@ pub fn check_own(dir: &Path, run: &SweepRun) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let found = RunConfig::load(&config)
-        .with_context(|| {
-            format!(
-                "run {}: its config.toml cannot be read; the sweep stops and touches nothing",
-                dir.display()
-            )
-        })?
+    let found = run_dir::load_config(dir)
+        .map_err(|e| anyhow::anyhow!("{e:#}; the sweep stops and touches nothing"))?
         .learned_with();
     let keys: BTreeSet<&String> = found.keys().chain(run.learned_with.keys()).collect();
     if let Some(key) = keys
@@ -717,9 +712,32 @@ fn record_spec(out: &Path, spec: &SweepSpec) -> anyhow::Result<()> {
             out.display()
         );
     }
-    apo_train::input::prepare_output_dir(out, "--out")?;
+    let created = apo_train::input::prepare_output_dir(out, "--out")?;
     apo_train::atomic::write(&path, text.as_bytes())
         .with_context(|| format!("cannot write {}", path.display()))
+        .inspect_err(|_| created.remove_if_empty())
+}
+
+/// Checks, before the sweep creates anything, that every run's folder name fits the file
+/// system of `out` (a run's name holds its grid values, which can be long).
+///
+/// # Errors
+/// Naming the first run whose name is too long, its length and the limit.
+pub fn check_run_names(out: &Path, runs: &[SweepRun]) -> anyhow::Result<()> {
+    for run in runs {
+        if let Some((name, length, max)) = apo_train::input::too_long_name(&out.join(&run.name)) {
+            bail!(
+                "--out {}: the folder name {name} is {length} bytes long; its file system takes at most {max}{}",
+                out.display(),
+                if name == run.name {
+                    " (a run's name holds its grid values: give them with fewer digits)"
+                } else {
+                    ""
+                }
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The lock file of a sweep's directory, held while a sweep runs or submits its runs.
@@ -912,6 +930,7 @@ pub fn run(
     signals: &Received,
     tick: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<SweepOutcome> {
+    check_run_names(&options.out, runs)?;
     record(&options.out, spec)?;
     let _lock = lock_sweep(&options.out)?;
     let statuses = runs

@@ -24,18 +24,27 @@ fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
 /// # Errors
 /// A file that cannot be read, or a row that does not parse, naming the file and the line.
 pub fn read(path: &Path) -> anyhow::Result<Vec<EpisodeRecord>> {
+    let (headers, mut reader) = open_with_headers(path)?;
+    reader
+        .records()
+        .enumerate()
+        .map(|(i, record)| {
+            crate::input::csv_record(record, &headers)
+                .map_err(|why| anyhow::anyhow!("{}: line {}: {why}", path.display(), i + 2))
+        })
+        .collect()
+}
+
+/// The file's reader and its header.
+fn open_with_headers(
+    path: &Path,
+) -> anyhow::Result<(csv::StringRecord, csv::Reader<std::io::Cursor<Vec<u8>>>)> {
     let mut reader = open(path)?;
-    let mut records = Vec::new();
-    for (i, record) in reader.deserialize::<EpisodeRecord>().enumerate() {
-        records.push(record.map_err(|e| {
-            anyhow::anyhow!(
-                "{} line {}: not an episode record of this version: {e}",
-                path.display(),
-                i + 2
-            )
-        })?);
-    }
-    Ok(records)
+    let headers = reader
+        .headers()
+        .map_err(|e| anyhow::anyhow!("{}: cannot read the header: {e}", path.display()))?
+        .clone();
+    Ok((headers, reader))
 }
 
 /// An `episodes.csv` read for reporting: the records kept, and one line per record left out.
@@ -53,29 +62,28 @@ pub struct Episodes {
 /// # Errors
 /// A file that cannot be read, or one of which no record parses (not an episode file).
 pub fn read_lenient(path: &Path) -> anyhow::Result<Episodes> {
-    let mut reader = open(path)?;
+    let (headers, mut reader) = open_with_headers(path)?;
     let mut episodes = Episodes::default();
     let mut first_error = None;
-    for (i, record) in reader.deserialize::<EpisodeRecord>().enumerate() {
+    for (i, record) in reader.records().enumerate() {
         let line = i + 2;
-        match record {
+        match crate::input::csv_record::<EpisodeRecord>(record, &headers) {
             Ok(r) if r.ret.is_finite() => episodes.records.push(r),
             Ok(r) => episodes
                 .left_out
                 .push(format!("line {line}: return = {}", r.ret)),
-            Err(e) => {
-                first_error.get_or_insert_with(|| e.to_string());
-                episodes
-                    .left_out
-                    .push(format!("line {line}: does not parse ({e})"));
+            Err(why) => {
+                first_error.get_or_insert_with(|| format!("line {line}: {why}"));
+                episodes.left_out.push(format!("line {line}: {why}"));
             }
         }
     }
     if episodes.records.is_empty() {
         if let Some(e) = first_error {
             anyhow::bail!(
-                "{} is not an episode file of this version: {e}",
-                path.display()
+                "{}: none of its {} record(s) can be read; the first: {e}",
+                path.display(),
+                episodes.left_out.len()
             );
         }
     }

@@ -4,7 +4,7 @@
 //! path.
 
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 
@@ -72,9 +72,10 @@ pub fn read_text(path: &Path, what: &str, max_bytes: u64) -> anyhow::Result<Stri
 }
 
 /// Checks, before any work, that a file can be written at `path` by apo's output rule: its
-/// folder exists and is a folder, `path` is not a folder, and an existing file there is
-/// replaced only with `replace` (the user's `--force`), never when it is not a plain file (a
-/// symbolic link, a FIFO, a device). `flag` names the option in the error (`--out`).
+/// folder exists and is a folder, its name fits the folder's file system ([`name_max`]),
+/// `path` is not a folder, and an existing file there is replaced only with `replace` (the
+/// user's `--force`), never when it is not a plain file (a symbolic link, a FIFO, a device).
+/// `flag` names the option in the error (`--out`).
 ///
 /// # Errors
 /// Naming the flag and the path.
@@ -119,6 +120,7 @@ pub fn check_output_file(path: &Path, flag: &str, replace: bool) -> anyhow::Resu
             parent.display()
         ),
     }
+    check_name_lengths(path, flag)?;
     check_writable(parent).with_context(|| {
         format!(
             "{flag} {}: cannot write in {}",
@@ -128,18 +130,102 @@ pub fn check_output_file(path: &Path, flag: &str, replace: bool) -> anyhow::Resu
     })
 }
 
+/// The first name along `path` that does not exist yet and is longer than its file system
+/// takes ([`name_max`] of the nearest existing folder above it), as `(name, its length in
+/// bytes, the limit)`; `None` when every new name fits.
+pub fn too_long_name(path: &Path) -> Option<(String, usize, usize)> {
+    let mut existing = path;
+    let mut new = Vec::new();
+    while std::fs::symlink_metadata(existing).is_err() {
+        let (Some(name), Some(parent)) = (existing.file_name(), existing.parent()) else {
+            break;
+        };
+        new.push(name);
+        existing = parent;
+    }
+    let folder = if existing.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        existing
+    };
+    let max = name_max(folder);
+    new.into_iter()
+        .rev()
+        .find(|name| name.len() > max)
+        .map(|name| (name.to_string_lossy().into_owned(), name.len(), max))
+}
+
+/// Checks, before any work, that every name of the output `path` that apo will create fits its
+/// file system ([`too_long_name`]). `flag` names the option in the error.
+///
+/// # Errors
+/// Naming the flag, the name, its length and the limit.
+pub fn check_name_lengths(path: &Path, flag: &str) -> anyhow::Result<()> {
+    match too_long_name(path) {
+        Some((name, length, max)) => bail!(
+            "{flag} {}: the name {name} is {length} bytes long; its file system takes at most {max}",
+            path.display()
+        ),
+        None => Ok(()),
+    }
+}
+
+/// The longest file name, in bytes, that the file system of the folder `dir` takes
+/// (`pathconf(dir, _PC_NAME_MAX)`; 255, Linux's usual limit, where it cannot tell).
+pub fn name_max(dir: &Path) -> usize {
+    use std::os::unix::ffi::OsStrExt;
+    let Ok(dir) = std::ffi::CString::new(dir.as_os_str().as_bytes()) else {
+        return 255;
+    };
+    // SAFETY: `dir` is a NUL-terminated string that outlives the call
+    let max = unsafe { libc::pathconf(dir.as_ptr(), libc::_PC_NAME_MAX) };
+    usize::try_from(max).ok().filter(|&m| m > 0).unwrap_or(255)
+}
+
 /// Creates the output folder `dir` (and its parents) and checks that files can be written in
-/// it, before any work. `flag` names the option in the error.
+/// it, before any work; returns the folders it created. `flag` names the option in the error.
 ///
 /// # Errors
 /// When `dir` is a file or cannot be created or written, naming the flag and the path.
-pub fn prepare_output_dir(dir: &Path, flag: &str) -> anyhow::Result<()> {
+pub fn prepare_output_dir(dir: &Path, flag: &str) -> anyhow::Result<CreatedDirs> {
     if std::fs::symlink_metadata(dir).is_ok() && !dir.is_dir() {
         bail!("{flag} {} exists and is not a directory", dir.display());
     }
+    check_name_lengths(dir, flag)?;
+    let mut created = CreatedDirs::default();
+    let mut missing = dir;
+    while std::fs::symlink_metadata(missing).is_err() {
+        created.0.push(missing.to_path_buf());
+        match missing.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => missing = parent,
+            _ => break,
+        }
+    }
     std::fs::create_dir_all(dir)
-        .with_context(|| format!("{flag} {}: cannot create the folder", dir.display()))?;
-    check_writable(dir).with_context(|| format!("{flag} {}: cannot write in it", dir.display()))
+        .with_context(|| format!("{flag} {}: cannot create the folder", dir.display()))
+        .inspect_err(|_| created.remove_if_empty())?;
+    check_writable(dir)
+        .with_context(|| format!("{flag} {}: cannot write in it", dir.display()))
+        .inspect_err(|_| created.remove_if_empty())?;
+    Ok(created)
+}
+
+/// The folders [`prepare_output_dir`] created, deepest first: a command that fails after it
+/// removes them again ([`CreatedDirs::remove_if_empty`]), so that it leaves only what was there.
+#[derive(Debug, Default)]
+#[must_use]
+pub struct CreatedDirs(Vec<PathBuf>);
+
+impl CreatedDirs {
+    /// Removes the created folders that are still empty, deepest first; a folder with anything
+    /// in it stays, and so do the folders above it.
+    pub fn remove_if_empty(&self) {
+        for dir in &self.0 {
+            if std::fs::remove_dir(dir).is_err() {
+                break;
+            }
+        }
+    }
 }
 
 /// Checks that a file can be created in the folder `dir` (creates and removes a probe file).
@@ -195,6 +281,38 @@ pub fn check_fits(bytes: f64, what: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// One record of a CSV file as `T`, or why not in the file's terms: the column, its value (the
+/// first 40 characters) and what the column takes — how every reader of apo's record files
+/// (`progress.csv`, `episodes.csv`) names a bad row, after `line <n>: `.
+///
+/// # Errors
+/// The record could not be read or does not fit `T`.
+pub fn csv_record<T: serde::de::DeserializeOwned>(
+    record: csv::Result<csv::StringRecord>,
+    headers: &csv::StringRecord,
+) -> Result<T, String> {
+    let record = record.map_err(|e| e.to_string())?;
+    record.deserialize(Some(headers)).map_err(|e| {
+        let csv::ErrorKind::Deserialize { err, .. } = e.kind() else {
+            return e.to_string();
+        };
+        let Some(field) = err.field().and_then(|f| usize::try_from(f).ok()) else {
+            return err.kind().to_string();
+        };
+        let takes = match err.kind() {
+            csv::DeserializeErrorKind::ParseInt(_) => "; it takes a whole number ≥ 0",
+            csv::DeserializeErrorKind::ParseFloat(_) => "; it takes a number",
+            _ => "",
+        };
+        let value: String = record.get(field).unwrap_or("").chars().take(40).collect();
+        format!(
+            "column `{}` = `{value}`: {}{takes}",
+            headers.get(field).unwrap_or("?"),
+            err.kind()
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -218,6 +336,36 @@ mod tests {
             err.contains("not a regular file") && err.contains("/dev/zero"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn an_output_folder_prepared_and_given_up_leaves_only_what_was_there() {
+        let tmp = tempfile::tempdir().expect("tempdir");
+        let deep = tmp.path().join("a/b/c");
+        let created = prepare_output_dir(&deep, "--out").expect("prepared");
+        assert!(deep.is_dir());
+        created.remove_if_empty();
+        assert!(
+            !tmp.path().join("a").exists(),
+            "every folder it made is gone"
+        );
+        // a folder with anything in it stays, and so do the folders above it
+        let created = prepare_output_dir(&deep, "--out").expect("prepared");
+        std::fs::write(tmp.path().join("a/b/user.txt"), "mine").expect("write");
+        created.remove_if_empty();
+        assert!(!deep.exists() && tmp.path().join("a/b/user.txt").is_file());
+        // a folder that was there is not one it made
+        let created = prepare_output_dir(&tmp.path().join("a"), "--out").expect("prepared");
+        created.remove_if_empty();
+        assert!(tmp.path().join("a/b/user.txt").is_file());
+        // a name too long for the file system is refused before anything is made
+        let long = tmp.path().join("x").join("y".repeat(300));
+        let err = format!("{:#}", prepare_output_dir(&long, "--out").unwrap_err());
+        assert!(
+            err.contains("300 bytes long") && err.contains("--out"),
+            "{err}"
+        );
+        assert!(!tmp.path().join("x").exists());
     }
 
     #[test]

@@ -88,8 +88,7 @@ impl LoadedRun {
     /// # Errors
     /// Not a run directory, no such checkpoint, a damaged checkpoint, an unknown environment.
     pub fn load(run_dir: &Path, which: &Which) -> anyhow::Result<LoadedRun> {
-        let config = RunConfig::load(&run_dir.join("config.toml"))
-            .with_context(|| format!("{} is not a run directory", run_dir.display()))?;
+        let config = crate::run_dir::load_config(run_dir)?;
         if crate::run_dir::check_resumable(run_dir).is_err() {
             anyhow::bail!(
                 "{} holds a config.toml but no run (neither apo's marker nor a checkpoint): train one with \

@@ -7,6 +7,9 @@
 //! and counted, and a warning names the file and the rows, so that one bad cell never turns
 //! into a NaN in a table, a doubled epoch or a silently failed run; a gap in the epochs
 //! (1, 2, 7) is named too, and a run's epoch count is its last epoch, not its row count.
+//!
+//! Both name a bad row the same way: its line, the column, the value and what the column
+//! takes; an epoch outside `1..=`[`MAX_EPOCHS`](crate::config::MAX_EPOCHS) is such a value.
 
 use std::path::Path;
 
@@ -48,17 +51,39 @@ fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
 /// Reads a `progress.csv` whole: every row must parse.
 ///
 /// # Errors
-/// A file that cannot be read, or a row that does not parse, naming the file.
+/// A file that cannot be read, or a row that does not parse, naming the file, the line, the
+/// column and the value.
 pub fn read(path: &Path) -> anyhow::Result<Vec<ProgressRow>> {
-    open(path)?
-        .deserialize()
-        .collect::<Result<Vec<ProgressRow>, _>>()
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "{} is not a progress file of this version: {e}",
-                path.display()
-            )
+    let mut reader = open(path)?;
+    let headers = reader
+        .headers()
+        .map_err(|e| anyhow::anyhow!("{}: cannot read the header: {e}", path.display()))?
+        .clone();
+    reader
+        .records()
+        .enumerate()
+        .map(|(i, record)| {
+            parse_row(record, &headers)
+                .map_err(|why| anyhow::anyhow!("{}: line {}: {why}", path.display(), i + 2))
         })
+        .collect()
+}
+
+/// One record as a row, or why not in the file's terms: the column, its value and what the
+/// column takes (an epoch outside `1..=MAX_EPOCHS` included).
+fn parse_row(
+    record: csv::Result<csv::StringRecord>,
+    headers: &csv::StringRecord,
+) -> Result<ProgressRow, String> {
+    let row: ProgressRow = crate::input::csv_record(record, headers)?;
+    let max = crate::config::MAX_EPOCHS;
+    if !(1..=max).contains(&row.epoch) {
+        return Err(format!(
+            "column `epoch` = `{}`: out of range; epochs are 1..={max}",
+            row.epoch
+        ));
+    }
+    Ok(row)
 }
 
 /// The first non-finite return statistic of `row`, by column name.
@@ -109,13 +134,11 @@ pub fn read_lenient(path: &Path, keep_non_finite: bool) -> anyhow::Result<Progre
     let mut first_error = None;
     for (i, record) in reader.records().enumerate() {
         let line = i + 2;
-        let row: ProgressRow = match record.and_then(|r| r.deserialize(Some(&headers))) {
+        let row = match parse_row(record, &headers) {
             Ok(row) => row,
-            Err(e) => {
-                first_error.get_or_insert_with(|| e.to_string());
-                progress
-                    .left_out
-                    .push(format!("line {line}: does not parse ({e})"));
+            Err(why) => {
+                first_error.get_or_insert_with(|| format!("line {line}: {why}"));
+                progress.left_out.push(format!("line {line}: {why}"));
                 continue;
             }
         };
@@ -138,8 +161,9 @@ pub fn read_lenient(path: &Path, keep_non_finite: bool) -> anyhow::Result<Progre
     if progress.rows.is_empty() {
         if let Some(e) = first_error {
             anyhow::bail!(
-                "{} is not a progress file of this version: {e}",
-                path.display()
+                "{}: none of its {} row(s) can be read; the first: {e}",
+                path.display(),
+                progress.left_out.len()
             );
         }
     }
@@ -231,5 +255,77 @@ mod tests {
         assert_eq!(gaps([2, 4, 5, 9]), vec![(1, 1), (3, 3), (6, 8)]);
         assert!(gaps([1, 2, 3]).is_empty());
         assert!(gaps(std::iter::empty()).is_empty());
+    }
+
+    /// Rule: a bad row is named by its line, the column, the value and what the column takes,
+    /// by both readers; an epoch outside 1..=MAX_EPOCHS is such a value, never a gap of
+    /// billions of epochs nor "a repeated epoch".
+    #[test]
+    fn a_bad_row_is_named_by_line_column_value_and_range_by_both_readers() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("progress.csv");
+        let rows: Vec<ProgressRow> = (1..=3)
+            .map(|epoch| ProgressRow {
+                epoch,
+                env_steps: 100 * epoch as u64,
+                ep_ret_mean: Some(1.0),
+                ..ProgressRow::default()
+            })
+            .collect();
+        write(&path, &rows).expect("write");
+        let good = std::fs::read_to_string(&path).expect("read");
+        let with_line_3 = |first: &str| {
+            let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+            let rest = lines[2].split_once(',').expect("cells").1.to_string();
+            lines[2] = format!("{first},{rest}");
+            std::fs::write(&path, lines.join("\n") + "\n").expect("write");
+        };
+        for (epoch, says) in [
+            (
+                "0",
+                "column `epoch` = `0`: out of range; epochs are 1..=1000000000",
+            ),
+            ("1000000001", "column `epoch` = `1000000001`: out of range"),
+            (
+                "18446744073709551616",
+                "column `epoch` = `18446744073709551616`: number too large",
+            ),
+            (
+                "-1",
+                "column `epoch` = `-1`: invalid digit found in string; it takes a whole number ≥ 0",
+            ),
+        ] {
+            with_line_3(epoch);
+            let lenient = read_lenient(&path, false).expect("the other rows");
+            assert_eq!(
+                lenient.rows.iter().map(|r| r.epoch).collect::<Vec<_>>(),
+                [1, 3]
+            );
+            assert_eq!(lenient.left_out.len(), 1);
+            assert!(
+                lenient.left_out[0].starts_with("line 3: ") && lenient.left_out[0].contains(says),
+                "{:?}",
+                lenient.left_out
+            );
+            assert_eq!(lenient.missing, [(2, 2)]);
+            let whole = format!("{:#}", read(&path).unwrap_err());
+            assert!(
+                whole.contains("progress.csv: line 3: ") && whole.contains(says),
+                "{whole}"
+            );
+        }
+        let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+        let mut cells: Vec<String> = lines[1].split(',').map(str::to_string).collect();
+        cells[3] = "x".into();
+        lines[1] = cells.join(",");
+        lines.truncate(2);
+        std::fs::write(&path, lines.join("\n") + "\n").expect("write");
+        let err = format!("{:#}", read_lenient(&path, false).unwrap_err());
+        assert!(
+            err.contains("none of its 1 row(s) can be read")
+                && err.contains("line 2: column `ep_ret_mean` = `x`")
+                && err.contains("it takes a number"),
+            "{err}"
+        );
     }
 }

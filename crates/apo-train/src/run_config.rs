@@ -98,6 +98,31 @@ pub enum ConfigFileError {
     /// A value out of range.
     #[error(transparent)]
     Range(#[from] apo_core::ConfigError),
+    /// An error of a config file's contents, with the file named.
+    #[error("config {path}: {error}")]
+    InFile {
+        /// The file.
+        path: String,
+        /// What is wrong in it.
+        error: Box<ConfigFileError>,
+    },
+}
+
+impl ConfigFileError {
+    /// The error with the config file `path` named, unless it names a file already.
+    fn in_file(self, path: &Path) -> Self {
+        match self {
+            Self::Read(_)
+            | Self::Parse { .. }
+            | Self::AlgorithmSection { .. }
+            | Self::BadSet(_)
+            | Self::InFile { .. } => self,
+            error => Self::InFile {
+                path: path.display().to_string(),
+                error: Box::new(error),
+            },
+        }
+    }
 }
 
 /// A named set of settings over the defaults and a config file: defaults, then `--config`,
@@ -197,7 +222,7 @@ impl RunConfig {
             if has_several_sections(&table) {
                 section_algorithm(&table, &path.display().to_string())?;
             }
-            merge(&mut doc, table, "")?;
+            merge(&mut doc, table, "").map_err(|e| e.in_file(path))?;
         }
         for (key, value) in preset.map(|p| p.settings(algo, env)).unwrap_or_default() {
             let key = in_section(key, algo);
@@ -221,15 +246,19 @@ impl RunConfig {
         Ok(config)
     }
 
-    /// Reads a configuration written by a run (`config.toml`), checking every key.
+    /// Reads a configuration written by a run (`config.toml`), checking every key; every
+    /// error names the file.
     pub fn load(path: &Path) -> Result<Self, ConfigFileError> {
-        let table = migrate_legacy(read_table(path)?);
-        let algo = section_algorithm(&table, &path.display().to_string())?;
-        let mut doc = to_table(&Self::defaults(algo, ""));
-        merge(&mut doc, table, "")?;
-        let config = Self::from_table(doc)?;
-        config.validate()?;
-        Ok(config)
+        let load = || {
+            let table = migrate_legacy(read_table(path)?);
+            let algo = section_algorithm(&table, &path.display().to_string())?;
+            let mut doc = to_table(&Self::defaults(algo, ""));
+            merge(&mut doc, table, "")?;
+            let config = Self::from_table(doc)?;
+            config.validate()?;
+            Ok(config)
+        };
+        load().map_err(|e: ConfigFileError| e.in_file(path))
     }
 
     fn from_table(mut doc: toml::Table) -> Result<Self, ConfigFileError> {

@@ -258,6 +258,31 @@ pub fn is_run_dir(dir: &Path) -> bool {
     RunConfig::load(&dir.join(CONFIG)).is_ok()
 }
 
+/// The configuration of the run in `dir`, as every command that reads a run loads it: a folder
+/// without a `config.toml` is "not a run directory"; a run whose `config.toml` apo cannot use
+/// is named as such, with the file and the key or line at fault.
+///
+/// # Errors
+/// Naming `dir`, the file and what is wrong in it.
+pub fn load_config(dir: &Path) -> anyhow::Result<RunConfig> {
+    let path = dir.join(CONFIG);
+    if std::fs::symlink_metadata(&path).is_err() {
+        match std::fs::metadata(dir) {
+            Err(e) => bail!("{} is not a run directory: {e}", dir.display()),
+            Ok(m) if !m.is_dir() => bail!(
+                "{} is not a run directory: it is not a folder",
+                dir.display()
+            ),
+            Ok(_) => bail!(
+                "{} is not a run directory: it has no {CONFIG}",
+                dir.display()
+            ),
+        }
+    }
+    RunConfig::load(&path)
+        .with_context(|| format!("the run in {} has a {CONFIG} apo cannot use", dir.display()))
+}
+
 /// Checks that `dir` holds a run that `--resume` may continue: a valid `config.toml` and either
 /// apo's marker or (a run from before the marker) a checkpoint. A folder that merely holds a
 /// `config.toml` (from `apo config > dir/config.toml`) is not one.
@@ -265,8 +290,7 @@ pub fn is_run_dir(dir: &Path) -> bool {
 /// # Errors
 /// Naming `dir` and what is missing.
 pub fn check_resumable(dir: &Path) -> anyhow::Result<RunConfig> {
-    let config = RunConfig::load(&dir.join(CONFIG))
-        .with_context(|| format!("{} is not a run directory", dir.display()))?;
+    let config = load_config(dir)?;
     let legacy = dir.join(CHECKPOINTS).join("latest").is_dir()
         || dir.join(CHECKPOINTS).join("previous").is_dir();
     if created_entries(dir)?.is_none() && !legacy {
@@ -523,6 +547,7 @@ impl NewRunDir {
             );
         }
         if std::fs::symlink_metadata(dir).is_err() {
+            crate::input::check_name_lengths(dir, "--out")?;
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("cannot create {}", dir.display()))?;
             claim_new(dir, &[LOCK])?;

@@ -172,6 +172,62 @@ fn a_folder_with_a_config_but_no_run_is_named_so_by_eval_render_and_resume() {
     );
 }
 
+/// Rule: a run whose `config.toml` apo cannot use (not TOML, a key no setting has, a value out
+/// of range) is a run with a bad config, not "not a run directory": every command that reads a
+/// run names the run, the file and the line or key at fault, and changes nothing.
+#[test]
+fn a_run_whose_config_apo_cannot_use_is_named_with_the_file_and_the_fault_by_every_reader() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("sweep");
+    let done = super::sweep(&out, "1", &[]);
+    assert!(done.status.success(), "{}", super::text(&done.stderr));
+    let run = out.join("CartPole-v1-ppo-s0");
+    let config = run.join("config.toml");
+    let original = std::fs::read_to_string(&config).expect("config.toml");
+    let image = tmp.path().join("x.png");
+    let video = tmp.path().join("x.gif");
+    let report = tmp.path().join("report");
+    for (damage, fault) in [
+        ("epochs = [\n".to_string(), "not valid TOML"),
+        (
+            format!("{original}[train]\nepochs = 3\n"),
+            "unknown config key `train`",
+        ),
+        (original.replace("seed = 0", "seed = -1"), "`seed`"),
+    ] {
+        std::fs::write(&config, &damage).expect("damage");
+        for args in [
+            vec!["eval", "--run", path(&run)],
+            vec!["render", "--run", path(&run), "--out", path(&video)],
+            vec!["train", "--resume", path(&run), "--quiet"],
+            vec!["report", path(&run), "--out", path(&report)],
+            vec!["plot", path(&run), "--out", path(&image)],
+            vec!["config", "--run", path(&run)],
+            super::sweep_args(&out, "2"),
+        ] {
+            let err = fails(&args);
+            assert!(
+                err.contains(&format!(
+                    "the run in {} has a config.toml apo cannot use",
+                    run.display()
+                )) && err.contains(&format!("config {}", config.display()))
+                    && err.contains(fault)
+                    && !err.contains("not a run directory"),
+                "{args:?} with {fault}: {err}"
+            );
+        }
+        assert_eq!(std::fs::read_to_string(&config).expect("config"), damage);
+        assert!(!image.exists() && !video.exists() && !report.exists());
+    }
+    // a folder without a config.toml is still "not a run directory", naming what it lacks
+    std::fs::remove_file(&config).expect("rm");
+    let err = fails(&["config", "--run", path(&run)]);
+    assert!(
+        err.contains("is not a run directory: it has no config.toml"),
+        "{err}"
+    );
+}
+
 /// A reader given something that is not a run says what it is — missing, a file, a folder
 /// with neither records nor a config — and never claims a `config.toml` that is not there.
 #[test]

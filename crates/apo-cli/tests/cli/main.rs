@@ -238,7 +238,6 @@ pub fn find_content(dir: &Path, text: &str) -> Vec<PathBuf> {
         .collect()
 }
 
-/// A sweep of one PPO CartPole run per seed, `epochs` epochs of 200 steps, in `out`.
 /// A sweep of one CartPole PPO run (seed 0) of `epochs` epochs × 200 steps in `out` (`extra`
 /// appended), run to its end.
 pub fn sweep(out: &Path, epochs: &str, extra: &[&str]) -> std::process::Output {

@@ -699,3 +699,51 @@ fn a_refused_folder_and_files_of_temporary_looking_names_are_left_alone() {
         );
     }
 }
+
+/// Rule: a name apo would create that is longer than its file system takes is refused before
+/// any work, naming the flag, the name's length and the limit — in every subcommand that
+/// writes (a file, a run, a report, a sweep and the runs its grid names) — and nothing is left.
+#[test]
+fn a_name_too_long_for_its_file_system_is_refused_before_any_work_everywhere() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let out = tmp.path().join("out");
+    std::fs::create_dir(&out).expect("mkdir");
+    let long = "a".repeat(300);
+    let at = |name: String| out.join(name);
+    let (video, image, folder) = (
+        at(format!("{long}.gif")),
+        at(format!("{long}.png")),
+        at(long.clone()),
+    );
+    let said = |err: &str| err.contains("bytes long") && err.contains("takes at most");
+    for args in [
+        vec!["render", "--run", path(&run), "--out", path(&video)],
+        vec!["plot", path(&run), "--out", path(&image)],
+        small_args(&folder),
+        vec!["report", path(&run), "--out", path(&folder)],
+        sweep_args(&folder, "1"),
+    ] {
+        let err = fails(&args);
+        assert!(said(&err) && err.contains("--out"), "{args:?}: {err}");
+        assert!(
+            entries(&out).is_empty(),
+            "{args:?} left {:?}",
+            entries(&out)
+        );
+    }
+    // a grid value long enough to make a run's name too long: refused before the first run
+    let sweep_dir = out.join("sweep");
+    let value = format!("0.{}", "1".repeat(250));
+    let grid = format!("algo.gamma=0.9,{value}");
+    let mut args = sweep_args(&sweep_dir, "1");
+    args.extend(["--grid", grid.as_str()]);
+    let err = fails(&args);
+    assert!(said(&err) && err.contains("grid values"), "{err}");
+    assert!(
+        !sweep_dir.exists(),
+        "the sweep made {:?}",
+        entries(&sweep_dir)
+    );
+}

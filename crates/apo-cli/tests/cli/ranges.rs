@@ -184,6 +184,8 @@ fn every_count_flag_refuses_the_largest_integer_and_one_past_it_naming_the_flag(
         (&["bench", "update"], "--batch"),
         (&["bench", "update"], "--repeats"),
         (&["bench", "epoch"], "--epochs"),
+        (&["bench", "epoch"], "--steps-per-epoch"),
+        (&["bench", "epoch"], "--num-envs"),
         (&["bench", "env"], "--steps"),
         (&["bench", "env"], "--num-envs"),
         (&["bench", "policy"], "--calls"),
@@ -303,8 +305,29 @@ fn sizes_are_checked_before_anything_is_created() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains("is not in 1.."), "{args:?}: {err}");
     }
+    // a memory refusal names the command's own flags and values, not config keys it never took
     let err = fails(&["bench", "update", "--batch", "10000000", "--obs", "100000"]);
-    assert!(err.contains("GiB of memory"), "{err}");
+    assert!(
+        err.contains("apo bench update --batch 10000000 --obs 100000 --act 8 would need about")
+            && err.contains("GiB of memory")
+            && !err.contains("steps_per_epoch"),
+        "{err}"
+    );
+    let err = fails(&[
+        "bench",
+        "epoch",
+        "--env",
+        "Pendulum-v1",
+        "--steps-per-epoch",
+        "100000000",
+        "--num-envs",
+        "65536",
+    ]);
+    assert!(
+        err.contains("--steps-per-epoch 100000000 --num-envs 65536 would need about")
+            && !err.contains("steps_per_epoch"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -1,6 +1,5 @@
 //! `apo bench`: timings of updates, epochs, environments and policy calls.
 
-use anyhow::Context;
 use apo_core::Algorithm;
 use apo_envs::mujoco::Physics;
 use apo_train::backend::{BackendKind, KernelsKind};
@@ -47,15 +46,15 @@ pub enum BenchCommand {
         /// Environment name.
         #[arg(long, default_value = "Hopper")]
         env: String,
-        /// Environment steps per epoch.
-        #[arg(long, default_value_t = 4000)]
+        /// Environment steps per epoch; 1..=100000000.
+        #[arg(long, default_value_t = 4000, value_parser = apo_cli::flags::count::<usize>(1, apo_train::config::MAX_STEPS_PER_EPOCH as u64))]
         steps_per_epoch: usize,
         /// Epochs (the first, with the set-up, and, pipelined, the last, with no rollout ahead,
         /// are left out of the medians); 2..=1000.
         #[arg(long, default_value_t = 5, value_parser = apo_cli::flags::count::<u64>(2, 1000))]
         epochs: u64,
-        /// Environments stepped together.
-        #[arg(long, default_value_t = 1)]
+        /// Environments stepped together; 1..=65536.
+        #[arg(long, default_value_t = 1, value_parser = apo_cli::flags::count::<usize>(1, apo_train::config::MAX_NUM_ENVS as u64))]
         num_envs: usize,
         /// Backend of the updates.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
@@ -126,9 +125,11 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
                 (batch as usize, obs as usize, act as usize, repeats as usize);
             let mut sized = RunConfig::defaults(Algorithm::Apo, "");
             sized.train.steps_per_epoch = batch;
-            sized
-                .check_memory(obs, apo_core::ActionKind::Continuous { dim: act })
-                .context("apo bench update --batch/--obs/--act")?;
+            let action = apo_core::ActionKind::Continuous { dim: act };
+            apo_train::input::check_fits(
+                apo_train::run_config::memory_estimate(&sized, obs, action, 0.0),
+                &format!("apo bench update --batch {batch} --obs {obs} --act {act}"),
+            )?;
             let t = apo_cli::bench::UpdateBench {
                 batch,
                 obs,
@@ -178,9 +179,14 @@ pub fn run(command: BenchCommand) -> anyhow::Result<()> {
             config.train.pipeline = !no_pipeline;
             config.train.physics = physics;
             config.validate()?;
-            config.check_memory(
-                spec.observation_dim,
-                apo_train::action_kind(&spec.action_space),
+            apo_train::input::check_fits(
+                apo_train::run_config::memory_estimate(
+                    &config,
+                    spec.observation_dim,
+                    apo_train::action_kind(&spec.action_space),
+                    config.env_bytes(),
+                ),
+                &format!("apo bench epoch --env {env} --steps-per-epoch {steps_per_epoch} --num-envs {num_envs}"),
             )?;
             let signals = crate::signals::Signals::install()?;
             let bench = apo_cli::bench::epoch(&config, threads, &signals.stop)?;

@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use apo_core::Algorithm;
 use apo_train::run_config::{Preset, RunConfig};
 use apo_train::run_dir;
@@ -33,8 +32,7 @@ pub struct ConfigArgs {
 pub fn run(args: ConfigArgs) -> anyhow::Result<()> {
     apo_train::run_config::check_repeated_sets(&args.sets)?;
     let config = match &args.run {
-        Some(run) => RunConfig::load(&run.join(run_dir::CONFIG))
-            .with_context(|| format!("{} is not a run directory", run.display()))?,
+        Some(run) => run_dir::load_config(run)?,
         None => {
             let algo = match &args.config {
                 Some(path) => args

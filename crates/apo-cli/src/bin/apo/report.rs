@@ -38,10 +38,19 @@ pub struct ReportArgs {
     ci_seed: u64,
 }
 
+/// A report that fails removes the `--out` folders it created (while empty): it leaves only
+/// what was there.
 pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
+    let created = match &args.out {
+        Some(out) => apo_train::input::prepare_output_dir(out, "--out")?,
+        None => apo_train::input::CreatedDirs::default(),
+    };
+    report_into(args).inspect_err(|_| created.remove_if_empty())
+}
+
+fn report_into(args: &ReportArgs) -> anyhow::Result<()> {
     // every option is checked before any work
     if let Some(out) = &args.out {
-        apo_train::input::prepare_output_dir(out, "--out")?;
         apo_train::run_dir::check_outputs(out, report::REPORT_MARKER, &report::fixed_outputs())?;
     }
     // the profiles hold reps × thresholds values at once (the default thresholds: 101)
