@@ -72,7 +72,7 @@ pub fn read_text(path: &Path, what: &str, max_bytes: u64) -> anyhow::Result<Stri
 }
 
 /// Checks, before any work, that a file can be written at `path` by apo's output rule: its
-/// folder exists and is a folder, its name fits the folder's file system ([`name_max`]),
+/// folder exists and is a folder, its name fits the folder's file system ([`too_long_name`]),
 /// `path` is not a folder, and an existing file there is replaced only with `replace` (the
 /// user's `--force`), never when it is not a plain file (a symbolic link, a FIFO, a device).
 /// `flag` names the option in the error (`--out`).
@@ -131,8 +131,9 @@ pub fn check_output_file(path: &Path, flag: &str, replace: bool) -> anyhow::Resu
 }
 
 /// The first name along `path` that does not exist yet and is longer than its file system
-/// takes ([`name_max`] of the nearest existing folder above it), as `(name, its length in
-/// bytes, the limit)`; `None` when every new name fits.
+/// takes (the limit of the nearest existing folder above it), as `(name, its length in
+/// bytes, the limit)`; `None` when every new name fits. The limit is `pathconf`'s
+/// `_PC_NAME_MAX` (255 on the usual Linux file systems).
 pub fn too_long_name(path: &Path) -> Option<(String, usize, usize)> {
     let mut existing = path;
     let mut new = Vec::new();
@@ -160,7 +161,7 @@ pub fn too_long_name(path: &Path) -> Option<(String, usize, usize)> {
 ///
 /// # Errors
 /// Naming the flag, the name, its length and the limit.
-pub fn check_name_lengths(path: &Path, flag: &str) -> anyhow::Result<()> {
+pub(crate) fn check_name_lengths(path: &Path, flag: &str) -> anyhow::Result<()> {
     match too_long_name(path) {
         Some((name, length, max)) => bail!(
             "{flag} {}: the name {name} is {length} bytes long; its file system takes at most {max}",
@@ -172,7 +173,7 @@ pub fn check_name_lengths(path: &Path, flag: &str) -> anyhow::Result<()> {
 
 /// The longest file name, in bytes, that the file system of the folder `dir` takes
 /// (`pathconf(dir, _PC_NAME_MAX)`; 255, Linux's usual limit, where it cannot tell).
-pub fn name_max(dir: &Path) -> usize {
+fn name_max(dir: &Path) -> usize {
     use std::os::unix::ffi::OsStrExt;
     let Ok(dir) = std::ffi::CString::new(dir.as_os_str().as_bytes()) else {
         return 255;
