@@ -93,9 +93,24 @@ struct Pipeline {
     /// of the two: all of rayon's but one, which is left to the rollout (made at the first
     /// pipelined epoch; `None` when it could not be made).
     fit_pool: Option<Option<rayon::ThreadPool>>,
-    /// Whether the last value fit outlasted its rollout: the next one then takes all of
-    /// rayon's threads (the results do not depend on the threads).
+    /// The threads the value fit runs on while it is the longer of the two: as many as
+    /// rayon's, at the lowest priority (nice 19), so that they take only what the rollout's
+    /// core leaves while it runs, and every core once it is done (made when first needed).
+    yielding_pool: Option<Option<rayon::ThreadPool>>,
+    /// Whether the last value fit outlasted its rollout: the next one then runs on the
+    /// yielding pool (the results do not depend on the threads).
     fit_outlasts: bool,
+}
+
+/// Lowers the calling thread to the lowest priority (nice 19; on Linux a nice value is a
+/// thread's own). Nothing happens where it cannot be set.
+fn lowest_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: gettid and setpriority have no preconditions; a failure leaves the priority as it was
+    unsafe {
+        let tid = libc::gettid();
+        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, 19);
+    }
 }
 
 impl Pipeline {
@@ -114,7 +129,19 @@ impl Pipeline {
                 .build()
                 .ok()
         });
-        let pool = pool.as_ref().filter(|_| !self.fit_outlasts);
+        let pool = if self.fit_outlasts {
+            let yielding = self.yielding_pool.get_or_insert_with(|| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(rayon::current_num_threads())
+                    .thread_name(|i| format!("apo-value-fit-low-{i}"))
+                    .start_handler(|_| lowest_priority())
+                    .build()
+                    .ok()
+            });
+            yielding.as_ref()
+        } else {
+            pool.as_ref()
+        };
         let start = Instant::now();
         let (collected, collect_s, fit_s) = std::thread::scope(|scope| {
             let fit = scope.spawn(move || {
