@@ -14,9 +14,9 @@ use crate::ProgressRow;
 pub use crate::{EpisodeRecord, Phase};
 use anyhow::Context;
 
-fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
-    let bytes = crate::input::read_bytes(path, "episode file", crate::input::PROGRESS_FILE)?;
-    Ok(csv::Reader::from_reader(std::io::Cursor::new(bytes)))
+/// The file's header and a reader of its records.
+fn open(path: &Path) -> anyhow::Result<(csv::StringRecord, crate::input::CsvReader)> {
+    crate::input::open_csv(path, "episode file")
 }
 
 /// Reads an `episodes.csv` whole: every row must parse.
@@ -24,7 +24,7 @@ fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
 /// # Errors
 /// A file that cannot be read, or a row that does not parse, naming the file and the line.
 pub fn read(path: &Path) -> anyhow::Result<Vec<EpisodeRecord>> {
-    let (headers, mut reader) = open_with_headers(path)?;
+    let (headers, mut reader) = open(path)?;
     reader
         .records()
         .enumerate()
@@ -33,18 +33,6 @@ pub fn read(path: &Path) -> anyhow::Result<Vec<EpisodeRecord>> {
                 .map_err(|why| anyhow::anyhow!("{}: line {}: {why}", path.display(), i + 2))
         })
         .collect()
-}
-
-/// The file's reader and its header.
-fn open_with_headers(
-    path: &Path,
-) -> anyhow::Result<(csv::StringRecord, csv::Reader<std::io::Cursor<Vec<u8>>>)> {
-    let mut reader = open(path)?;
-    let headers = reader
-        .headers()
-        .map_err(|e| anyhow::anyhow!("{}: cannot read the header: {e}", path.display()))?
-        .clone();
-    Ok((headers, reader))
 }
 
 /// An `episodes.csv` read for reporting: the records kept, and one line per record left out.
@@ -62,7 +50,7 @@ pub struct Episodes {
 /// # Errors
 /// A file that cannot be read, or one of which no record parses (not an episode file).
 pub fn read_lenient(path: &Path) -> anyhow::Result<Episodes> {
-    let (headers, mut reader) = open_with_headers(path)?;
+    let (headers, mut reader) = open(path)?;
     let mut episodes = Episodes::default();
     let mut first_error = None;
     for (i, record) in reader.records().enumerate() {

@@ -282,6 +282,24 @@ pub fn check_fits(bytes: f64, what: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A reader of one of apo's record files, read whole into memory.
+pub type CsvReader = csv::Reader<std::io::Cursor<Vec<u8>>>;
+
+/// The header of the record file at `path` (at most [`PROGRESS_FILE`] bytes; `what` names it
+/// in errors) and a reader of its records.
+///
+/// # Errors
+/// A file that cannot be read or whose header cannot.
+pub fn open_csv(path: &Path, what: &str) -> anyhow::Result<(csv::StringRecord, CsvReader)> {
+    let bytes = read_bytes(path, what, PROGRESS_FILE)?;
+    let mut reader = csv::Reader::from_reader(std::io::Cursor::new(bytes));
+    let headers = reader
+        .headers()
+        .map_err(|e| anyhow::anyhow!("{}: cannot read the header: {e}", path.display()))?
+        .clone();
+    Ok((headers, reader))
+}
+
 /// One record of a CSV file as `T`, or why not in the file's terms: the column, its value (the
 /// first 40 characters) and what the column takes — how every reader of apo's record files
 /// (`progress.csv`, `episodes.csv`) names a bad row, after `line <n>: `.

@@ -43,9 +43,9 @@ pub fn gaps(epochs: impl IntoIterator<Item = usize>) -> Vec<(usize, usize)> {
     missing
 }
 
-fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
-    let bytes = crate::input::read_bytes(path, "progress file", crate::input::PROGRESS_FILE)?;
-    Ok(csv::Reader::from_reader(std::io::Cursor::new(bytes)))
+/// The file's header and a reader of its records.
+fn open(path: &Path) -> anyhow::Result<(csv::StringRecord, crate::input::CsvReader)> {
+    crate::input::open_csv(path, "progress file")
 }
 
 /// Reads a `progress.csv` whole: every row must parse.
@@ -54,11 +54,7 @@ fn open(path: &Path) -> anyhow::Result<csv::Reader<std::io::Cursor<Vec<u8>>>> {
 /// A file that cannot be read, or a row that does not parse, naming the file, the line, the
 /// column and the value.
 pub fn read(path: &Path) -> anyhow::Result<Vec<ProgressRow>> {
-    let mut reader = open(path)?;
-    let headers = reader
-        .headers()
-        .map_err(|e| anyhow::anyhow!("{}: cannot read the header: {e}", path.display()))?
-        .clone();
+    let (headers, mut reader) = open(path)?;
     reader
         .records()
         .enumerate()
@@ -111,11 +107,7 @@ fn non_finite(row: &ProgressRow) -> Option<(&'static str, f64)> {
 /// # Errors
 /// A file that cannot be read, or one of which no row parses (not a progress file).
 pub fn read_lenient(path: &Path, keep_non_finite: bool) -> anyhow::Result<Progress> {
-    let mut reader = open(path)?;
-    let headers = reader
-        .headers()
-        .map_err(|e| anyhow::anyhow!("{}: cannot read the header: {e}", path.display()))?
-        .clone();
+    let (headers, mut reader) = open(path)?;
     if let Some(missing) = REQUIRED_COLUMNS
         .iter()
         .find(|c| !headers.iter().any(|h| h == **c))
