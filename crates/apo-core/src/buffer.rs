@@ -40,6 +40,25 @@ pub struct Batch {
     /// APO's scale-free penalty (`PenaltyUnits::Advantage`) measures `delta` and `value` in
     /// this unit.
     pub adv_scale: f64,
+    /// The rewards `r_t` as the environment gave them, `[n]` (what [`crate::shaping`]
+    /// reshapes before computing `delta`, `adv` and `ret` again).
+    pub reward: Vec<f32>,
+    /// The paths the rows form, in row order: each ends at a row and says what it bootstrapped
+    /// from and whether an episode ended there.
+    pub paths: Vec<PathEnd>,
+}
+
+/// The end of one path of a [`Batch`]: the path runs from the previous path's end (or row 0)
+/// to `end` (exclusive).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathEnd {
+    /// The row after the path's last step.
+    pub end: usize,
+    /// `V(s_T)` the path bootstrapped from (0 when the episode terminated).
+    pub last_value: f32,
+    /// Whether an episode ended with the path (terminated or truncated by the time limit);
+    /// `false` for a path the end of the epoch cut, whose episode's return is not known.
+    pub episode: bool,
 }
 
 impl Default for Batch {
@@ -55,13 +74,16 @@ impl Default for Batch {
             adv: Vec::new(),
             ret: Vec::new(),
             adv_scale: 1.0,
+            reward: Vec::new(),
+            paths: Vec::new(),
         }
     }
 }
 
 impl Batch {
     /// The transitions `rows` (a contiguous range of `0..len`), for example one rank's share
-    /// of a batch. The advantages are copied as they are (not normalized again).
+    /// of a batch. The advantages are copied as they are (not normalized again); a path that
+    /// `rows` cuts keeps the part inside, as a path cut by the epoch's end.
     ///
     /// # Panics
     /// If `rows` reaches past `len`.
@@ -87,7 +109,69 @@ impl Batch {
             adv: part(&self.adv),
             ret: part(&self.ret),
             adv_scale: self.adv_scale,
+            reward: part(&self.reward),
+            paths: self
+                .path_ranges()
+                .filter(|&(start, end, _)| end > rows.start && start < rows.end)
+                .map(|(start, end, path)| PathEnd {
+                    end: end.min(rows.end) - rows.start,
+                    last_value: path.last_value,
+                    episode: path.episode && start >= rows.start && end <= rows.end,
+                })
+                .collect(),
         }
+    }
+
+    /// Each path's rows `start..end` with its end.
+    pub fn path_ranges(&self) -> impl Iterator<Item = (usize, usize, PathEnd)> + '_ {
+        let mut start = 0;
+        self.paths.iter().map(move |&path| {
+            let range = (start, path.end, path);
+            start = path.end;
+            range
+        })
+    }
+}
+
+/// Appends one path's one-step advantages, (unnormalized) GAE(γ, λ) advantages and
+/// rewards-to-go, computed in f64 from its `rewards [T]`, its critic `values [T]` and the
+/// value `last_value` it bootstraps from:
+/// `delta_t = r_t + γ V(s_{t+1}) − V(s_t)`, `adv_t = delta_t + γλ adv_{t+1}`,
+/// `ret_t = r_t + γ ret_{t+1}`, with `V(s_T) = ret_T = last_value`.
+///
+/// # Panics
+/// If `rewards` and `values` differ in length.
+#[allow(clippy::too_many_arguments)]
+pub fn path_advantages(
+    rewards: &[f32],
+    values: &[f32],
+    last_value: f32,
+    gamma: f64,
+    lambda: f64,
+    delta: &mut Vec<f32>,
+    adv: &mut Vec<f32>,
+    ret: &mut Vec<f32>,
+) {
+    assert_eq!(rewards.len(), values.len(), "one value per reward");
+    let (from, len) = (delta.len(), rewards.len());
+    delta.resize(from + len, 0.0);
+    adv.resize(adv.len() + len, 0.0);
+    ret.resize(ret.len() + len, 0.0);
+    let (adv_from, ret_from) = (adv.len() - len, ret.len() - len);
+    let gl = gamma * lambda;
+    let mut next_value = f64::from(last_value);
+    let mut adv_acc = 0.0f64;
+    let mut ret_acc = f64::from(last_value);
+    for t in (0..len).rev() {
+        let r = f64::from(rewards[t]);
+        let v = f64::from(values[t]);
+        let d = r + gamma * next_value - v;
+        adv_acc = d + gl * adv_acc;
+        ret_acc = r + gamma * ret_acc;
+        delta[from + t] = d as f32;
+        adv[adv_from + t] = adv_acc as f32;
+        ret[ret_from + t] = ret_acc as f32;
+        next_value = v;
     }
 }
 
@@ -113,9 +197,10 @@ pub struct RolloutBuffer {
     capacity: usize,
     rewards: Vec<f32>,
     path_start: usize,
-    /// Paths ended by [`RolloutBuffer::end_path`] and not yet finished: where each ends, and
-    /// the row of `bootstrap_obs` to bootstrap from (`None`: from 0).
-    pending: Vec<(usize, Option<usize>)>,
+    /// Paths ended by [`RolloutBuffer::end_path`] or [`RolloutBuffer::cut_path`] and not yet
+    /// finished: where each ends, the row of `bootstrap_obs` to bootstrap from (`None`: from
+    /// 0), and whether an episode ended there.
+    pending: Vec<(usize, Option<usize>, bool)>,
     /// The observations to bootstrap pending paths from, `[rows, observation_dim]`.
     bootstrap_obs: Vec<f32>,
 }
@@ -149,6 +234,8 @@ impl RolloutBuffer {
             adv: Vec::with_capacity(capacity),
             ret: Vec::with_capacity(capacity),
             adv_scale: 1.0,
+            reward: Vec::new(),
+            paths: Vec::new(),
         }
     }
 
@@ -205,7 +292,7 @@ impl RolloutBuffer {
             self.pending.is_empty(),
             "finish_path with paths waiting for finish_paths"
         );
-        self.finish_path_at(self.batch.len, last_value);
+        self.finish_path_at(self.batch.len, last_value, true);
     }
 
     /// Ends the current path without computing anything yet: the critic's values of its steps,
@@ -213,17 +300,31 @@ impl RolloutBuffer {
     /// rollout needs no critic while it runs (the values of a whole batch are then one batched
     /// call). `bootstrap`: `None` to bootstrap from 0 (terminated), else the observation
     /// `[observation_dim]` whose `V` to bootstrap from (truncated, or cut by the epoch's end).
-    /// The values stored with [`RolloutBuffer::store`] for these steps are replaced.
+    /// The values stored with [`RolloutBuffer::store`] for these steps are replaced. The path
+    /// ends an episode (terminated, or truncated by the time limit).
     ///
     /// # Panics
     /// If `bootstrap` has the wrong length.
     pub fn end_path(&mut self, bootstrap: Option<&[f32]>) {
+        self.pend(bootstrap, true);
+    }
+
+    /// [`RolloutBuffer::end_path`] for the path the end of the epoch cuts: it bootstraps from
+    /// `V(obs)` and ends no episode (its return is not known; see [`PathEnd::episode`]).
+    ///
+    /// # Panics
+    /// If `obs` has the wrong length.
+    pub fn cut_path(&mut self, obs: &[f32]) {
+        self.pend(Some(obs), false);
+    }
+
+    fn pend(&mut self, bootstrap: Option<&[f32]>, episode: bool) {
         let row = bootstrap.map(|obs| {
             assert_eq!(obs.len(), self.layout.observation_dim, "observation width");
             self.bootstrap_obs.extend_from_slice(obs);
             self.bootstrap_obs.len() / self.layout.observation_dim - 1
         });
-        self.pending.push((self.batch.len, row));
+        self.pending.push((self.batch.len, row, episode));
     }
 
     /// Finishes every path ended by [`RolloutBuffer::end_path`] since the last finished one:
@@ -232,7 +333,7 @@ impl RolloutBuffer {
     /// observations. Then each path's `delta`, advantages and rewards-to-go are computed as
     /// [`RolloutBuffer::finish_path`] computes them.
     pub fn finish_paths(&mut self, mut critic: impl FnMut(&[f32], usize, &mut Vec<f32>)) {
-        let Some(&(end, _)) = self.pending.last() else {
+        let Some(&(end, _, _)) = self.pending.last() else {
             return;
         };
         let (start, dim) = (self.path_start, self.layout.observation_dim);
@@ -248,45 +349,43 @@ impl RolloutBuffer {
         if rows > 0 {
             critic(&self.bootstrap_obs, rows, &mut bootstraps);
         }
-        for (end, row) in std::mem::take(&mut self.pending) {
+        for (end, row, episode) in std::mem::take(&mut self.pending) {
             let last_value = row.map_or(0.0, |r| bootstraps[r]);
-            self.finish_path_at(end, last_value);
+            self.finish_path_at(end, last_value, episode);
         }
         self.bootstrap_obs.clear();
     }
 
     /// Finishes the path from `path_start` to `end` (exclusive), bootstrapping from
     /// `last_value`.
-    fn finish_path_at(&mut self, end: usize, last_value: f32) {
+    fn finish_path_at(&mut self, end: usize, last_value: f32, episode: bool) {
         let start = self.path_start;
-        let (gamma, gl) = (self.gamma, self.gamma * self.lambda);
-        let mut next_value = f64::from(last_value);
-        let mut adv_acc = 0.0f64;
-        let mut ret_acc = f64::from(last_value);
-        let mut delta = vec![0.0f32; end - start];
-        let mut adv = vec![0.0f32; end - start];
-        let mut ret = vec![0.0f32; end - start];
-        for t in (start..end).rev() {
-            let r = f64::from(self.rewards[t]);
-            let v = f64::from(self.batch.value[t]);
-            let d = r + gamma * next_value - v;
-            adv_acc = d + gl * adv_acc;
-            ret_acc = r + gamma * ret_acc;
-            delta[t - start] = d as f32;
-            adv[t - start] = adv_acc as f32;
-            ret[t - start] = ret_acc as f32;
-            next_value = v;
-        }
-        self.batch.delta.extend(delta);
-        self.batch.adv.extend(adv);
-        self.batch.ret.extend(ret);
+        let b = &mut self.batch;
+        path_advantages(
+            &self.rewards[start..end],
+            &b.value[start..end],
+            last_value,
+            self.gamma,
+            self.lambda,
+            &mut b.delta,
+            &mut b.adv,
+            &mut b.ret,
+        );
+        b.paths.push(PathEnd {
+            end,
+            last_value,
+            episode,
+        });
         self.path_start = end;
     }
 
     /// Number of steps of the path in progress (0 right after [`RolloutBuffer::finish_path`]
     /// or [`RolloutBuffer::end_path`]).
     pub fn path_len(&self) -> usize {
-        let open = self.pending.last().map_or(self.path_start, |&(end, _)| end);
+        let open = self
+            .pending
+            .last()
+            .map_or(self.path_start, |&(end, _, _)| end);
         self.batch.len - open
     }
 
@@ -323,13 +422,20 @@ impl RolloutBuffer {
             // the next epoch's steps go into a batch with room for them (growing one step by
             // step would copy it about twice over)
             let room = RolloutBuffer::empty_batch(buffer.layout, buffer.capacity);
-            let part = std::mem::replace(&mut buffer.batch, room);
-            buffer.rewards.clear();
+            let mut part = std::mem::replace(&mut buffer.batch, room);
+            part.reward = std::mem::take(&mut buffer.rewards);
+            buffer.rewards.reserve(buffer.capacity);
             buffer.path_start = 0;
             if batch.len == 0 {
                 batch = part;
                 continue;
             }
+            let offset = batch.len;
+            batch.paths.extend(part.paths.iter().map(|p| PathEnd {
+                end: p.end + offset,
+                ..*p
+            }));
+            batch.reward.extend(part.reward);
             batch.len += part.len;
             batch.obs.extend(part.obs);
             batch.actions.extend(part.actions);

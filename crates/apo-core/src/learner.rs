@@ -24,6 +24,7 @@ use crate::kernels::Kernels;
 use crate::objective::{Multipliers, Objective};
 use crate::policy::{check_distribution, ActionKind, Policy, PolicyError, PolicyFamily};
 use crate::proximal::{proximal_update, value_update, ProximalReport};
+use crate::shaping::{shape, Shaped, ShapingError, ShapingReport, ShapingState};
 use crate::tensor_batch::TensorBatch;
 use crate::trust_region::{trust_region_step, LineSearchOutcome, Rejections};
 use crate::value::{ValueConfig, ValueNet};
@@ -67,10 +68,24 @@ pub struct UpdateReport {
     pub proximal: Option<ProximalReport>,
     /// V-MPO's temperature η and multiplier α after the update.
     pub multipliers: Option<Multipliers>,
+    /// What the risk shaping did to the batch ([`Learner::shape`]; MVPI, CVaR, return
+    /// capping), filled in by the caller that shaped it.
+    pub shaping: Option<ShapingReport>,
     /// Wall time of the policy update (with the evaluation of the terms at θ_j), seconds.
     pub policy_update_s: f64,
     /// Wall time of the value update, seconds.
     pub value_update_s: f64,
+}
+
+/// Why [`Learner::update`] updated nothing.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum UpdateError {
+    /// The policy's distributions do not fit the batch's actions.
+    #[error(transparent)]
+    Policy(#[from] PolicyError),
+    /// The batch does not record what the algorithm's risk shaping needs.
+    #[error(transparent)]
+    Shaping(#[from] ShapingError),
 }
 
 /// A policy of family `F` and a value network, with their Adam states, on `Autodiff<B>`.
@@ -88,6 +103,8 @@ where
     value_optim: ValueAdam<B>,
     /// V-MPO's learned η and α (`None` for the other algorithms).
     multipliers: Option<Multipliers>,
+    /// What the risk shaping carries from epoch to epoch (return capping's cap).
+    shaping: ShapingState,
     kernels: Kernels,
     comm: Comm,
 }
@@ -136,6 +153,7 @@ where
         };
         Ok(Self {
             multipliers,
+            shaping: ShapingState::default(),
             policy,
             value,
             family,
@@ -238,6 +256,43 @@ where
         }
     }
 
+    /// What the risk shaping carries from epoch to epoch (for checkpoints).
+    pub fn shaping_state(&self) -> &ShapingState {
+        &self.shaping
+    }
+
+    /// Replaces what the risk shaping carries (when resuming from a checkpoint).
+    pub fn restore_shaping_state(&mut self, state: ShapingState) {
+        self.shaping = state;
+    }
+
+    /// The epoch's `batch` (this rank's part, collected by the current policy) shaped by the
+    /// algorithm's risk shaping ([`crate::shaping`]: MVPI's augmented rewards, CVaR's worst
+    /// episodes, return capping's capped rewards), updating what the shaping carries to the
+    /// next epoch; `None` for the algorithms that use the batch as it is. Call it once per
+    /// epoch, before [`Learner::update_policy`] (on [`Shaped::policy`]) and
+    /// [`Learner::update_value`] (on [`Shaped::value`], or the policy's batch when that is
+    /// `None`).
+    ///
+    /// # Errors
+    /// [`ShapingError`] when the algorithm shapes batches and `batch` does not record a reward
+    /// per row and paths that cover its rows (a [`crate::RolloutBuffer`]'s batch does).
+    pub fn shape(&mut self, batch: &Batch) -> Result<Option<Shaped>, ShapingError> {
+        let Some(rule) = self.config.settings().shaping() else {
+            return Ok(None);
+        };
+        let common = self.config.common();
+        shape(
+            batch,
+            rule,
+            &mut self.shaping,
+            common.gamma,
+            common.lambda,
+            &self.comm,
+        )
+        .map(Some)
+    }
+
     /// The objective the next update maximizes: the configured one, with V-MPO's learned
     /// η and α.
     pub fn objective(&self) -> Objective {
@@ -264,18 +319,30 @@ where
     /// One epoch's update of the policy (by the configured algorithm) and of the value
     /// network, on `batch` collected by the current policy (with several ranks, this rank's
     /// part of the epoch's batch); `rng` shuffles minibatches. The same as
-    /// [`Learner::update_policy`] then [`Learner::update_value`].
+    /// [`Learner::shape`], then [`Learner::update_policy`] and [`Learner::update_value`] on
+    /// the batches it gives.
     ///
     /// # Errors
-    /// [`PolicyError`] when the policy's distributions on the batch's states do not fit its
-    /// actions (family, action width or batch size); nothing is updated then.
+    /// [`UpdateError::Policy`] when the policy's distributions on the batch's states do not fit
+    /// its actions (family, action width or batch size), [`UpdateError::Shaping`] when the
+    /// algorithm shapes batches and this one does not record its rewards and paths; nothing is
+    /// updated then.
     pub fn update(
         &mut self,
         batch: &Batch,
         rng: &mut impl Rng,
-    ) -> Result<UpdateReport, PolicyError> {
-        let mut report = self.update_policy(batch, rng)?;
-        self.update_value(batch, rng, &mut report);
+    ) -> Result<UpdateReport, UpdateError> {
+        let before = self.shaping;
+        let shaped = self.shape(batch)?;
+        let (policy_batch, value_batch) = match &shaped {
+            Some(s) => (&s.policy, s.value.as_ref().unwrap_or(&s.policy)),
+            None => (batch, batch),
+        };
+        let mut report = self.update_policy(policy_batch, rng).inspect_err(|_| {
+            self.shaping = before;
+        })?;
+        report.shaping = shaped.as_ref().map(|s| s.report);
+        self.update_value(value_batch, rng, &mut report);
         Ok(report)
     }
 
@@ -396,6 +463,7 @@ where
                 .map(|on| on > 0.5),
             proximal,
             multipliers: self.multipliers,
+            shaping: None,
             policy_update_s,
             value_update_s: 0.0,
         })

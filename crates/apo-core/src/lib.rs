@@ -123,6 +123,7 @@ pub mod mlp;
 pub mod objective;
 pub mod policy;
 pub mod proximal;
+pub mod shaping;
 pub mod tensor_batch;
 pub mod trust_region;
 mod validate;
@@ -132,18 +133,19 @@ mod value_fit;
 pub use algorithm::{
     AlgoConfig, Algorithm, AlgorithmConfig, ConfigError, HMaxMode, PolicyStep, Settings,
 };
-pub use buffer::{Batch, BufferLayout, RolloutBuffer};
+pub use buffer::{Batch, BufferLayout, PathEnd, RolloutBuffer};
 pub use collective::{Collective, Comm, Solo};
 pub use distribution::DistParams;
 pub use fisher::FisherOperator;
 pub use kernels::Kernels;
-pub use learner::{Learner, UpdateReport};
+pub use learner::{Learner, UpdateError, UpdateReport};
 pub use metrics::EpisodeStats;
 pub use objective::{
     ApoParams, HMax, Multipliers, Objective, ObjectiveTerms, PenaltyUnits, Switch, VmpoParams,
 };
 pub use policy::{ActionKind, MlpPolicy, MlpPolicyConfig, Policy, PolicyError, PolicyFamily};
 pub use proximal::{ProximalConfig, ProximalReport, ProximalStep};
+pub use shaping::{Shaped, ShapingError, ShapingReport, ShapingRule, ShapingState};
 pub use tensor_batch::TensorBatch;
 pub use trust_region::{
     Acceptance, LineSearchOutcome, Rejections, TrustRegionConfig, TrustRegionReport,

@@ -126,6 +126,7 @@ fn random_batch(n: usize, obs_dim: usize, seed: u64) -> apo_core::Batch {
         obs,
         ret,
         adv_scale: 1.0,
+        ..apo_core::Batch::default()
     }
 }
 
@@ -270,6 +271,9 @@ fn policy_update(config: &mut apo_core::AlgoConfig) -> &mut apo_core::ProximalCo
         Espo(c) => &mut c.policy_update,
         AlphaPpo(c) => &mut c.policy_update,
         Vmpo(c) => &mut c.policy_update,
+        Mvpi(c) => &mut c.policy_update,
+        Cvar(c) => &mut c.policy_update,
+        Retcap(c) => &mut c.policy_update,
         Apo(_) | Trpo(_) => unreachable!("trust-region algorithms have no Adam update"),
     }
 }
@@ -288,11 +292,18 @@ fn host_proximal_updates_match_burn_for_every_algorithm() {
     let (obs_dim, hidden) = (5, vec![16, 16]);
     let fits = [Host, Host, Backend, Host];
     let mut worst = 0.0f64;
-    for algo in Algorithm::ALL
-        .iter()
-        .copied()
-        .filter(|a| !matches!(a, Algorithm::Apo | Algorithm::Trpo))
-    {
+    // MVPI, CVaR and return capping update as PPO on their shaped batch (this batch records no
+    // rewards or paths to shape): PPO's row covers their policy step
+    for algo in Algorithm::ALL.iter().copied().filter(|a| {
+        !matches!(
+            a,
+            Algorithm::Apo
+                | Algorithm::Trpo
+                | Algorithm::Mvpi
+                | Algorithm::Cvar
+                | Algorithm::Retcap
+        )
+    }) {
         for action in [
             ActionKind::Continuous { dim: 2 },
             ActionKind::Discrete { n: 3 },

@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use crate::RunState;
 use anyhow::{bail, Context};
-use apo_core::{ActionKind, Learner, Multipliers, PolicyFamily};
+use apo_core::{ActionKind, Learner, Multipliers, PolicyFamily, ShapingState};
 use burn::backend::Autodiff;
 use burn::module::{AutodiffModule, Module};
 use burn::optim::Optimizer;
@@ -58,6 +58,10 @@ pub struct TrainState {
     /// same number: each rank's rollout seeds and share of the batch depend on it.
     #[serde(default = "one_rank", skip_serializing_if = "is_one_rank")]
     pub ranks: usize,
+    /// What the risk shaping carries from epoch to epoch (return capping's cap; absent for the
+    /// other algorithms, and before the first cap), written from the learner by [`save`].
+    #[serde(default, skip_serializing_if = "ShapingState::is_empty")]
+    pub shaping: ShapingState,
     /// The records `episodes.csv` held when the checkpoint was written (absent in checkpoints
     /// of runs that kept no count): resuming refuses a record that has lost some.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -79,6 +83,7 @@ impl TrainState {
             format: FORMAT,
             run,
             vmpo: None,
+            shaping: ShapingState::default(),
             ranks: 1,
             episode_records: None,
         }
@@ -568,6 +573,7 @@ where
         serde_json::to_string_pretty(&TrainState {
             format: FORMAT,
             vmpo: learner.multipliers().copied(),
+            shaping: *learner.shaping_state(),
             ..state.clone()
         })?
         .as_bytes(),
@@ -778,6 +784,13 @@ where
             state_path.display()
         ),
     }
+    if !state.shaping.is_empty() && learner.config().settings().shaping().is_none() {
+        bail!(
+            "{} holds a risk shaping's state (return capping's cap), but the run's algorithm shapes nothing",
+            state_path.display()
+        );
+    }
+    learner.restore_shaping_state(state.shaping);
     learner.restore(policy, value, policy_optim, value_optim);
     for (what, params) in [
         ("policy", learner.policy_params()),

@@ -1,6 +1,6 @@
 //! Errors of the training loop.
 
-use apo_core::{ConfigError, PolicyError};
+use apo_core::{ConfigError, PolicyError, ShapingError};
 use apo_envs::EnvError;
 
 /// Why training could not start or continue.
@@ -12,6 +12,9 @@ pub enum TrainError {
     /// The policy's distributions do not fit the environment's actions.
     #[error(transparent)]
     Policy(#[from] PolicyError),
+    /// The epoch's batch does not record what the algorithm's risk shaping needs.
+    #[error(transparent)]
+    Shaping(#[from] ShapingError),
     /// The environments could not be made.
     #[error(transparent)]
     Env(#[from] EnvError),

@@ -348,7 +348,7 @@ impl Collector {
         for i in 0..n {
             if self.buffers[i].path_len() > 0 {
                 self.normalized(&self.obs[i * obs_dim..(i + 1) * obs_dim], &mut row);
-                self.buffers[i].end_path(Some(&row));
+                self.buffers[i].cut_path(&row);
             }
         }
         rollout.sim_s = sim_s;

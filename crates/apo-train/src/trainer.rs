@@ -444,23 +444,45 @@ where
         };
         // the policy step
         let mut rng = StdRng::seed_from_u64(derive_seed(seed, 0, 2));
-        let mut update = self.learner.update_policy(&rollout.batch, &mut rng)?;
+        // the risk shaping of MVPI, CVaR and return capping (none for the other algorithms)
+        let shaping_before = *self.learner.shaping_state();
+        let shaped = self.learner.shape(&rollout.batch)?;
+        let (policy_batch, value_batch) = match &shaped {
+            Some(s) => (&s.policy, s.value.as_ref().unwrap_or(&s.policy)),
+            None => (&rollout.batch, &rollout.batch),
+        };
+        let mut update = match self.learner.update_policy(policy_batch, &mut rng) {
+            Ok(update) => update,
+            Err(e) => {
+                self.learner.restore_shaping_state(shaping_before);
+                return Err(e.into());
+            }
+        };
+        if let Some(s) = &shaped {
+            update.shaping = Some(s.report);
+            tracing::info!(
+                epoch = self.state.epoch + 1,
+                level = s.report.level,
+                kept = s.report.kept,
+                "risk shaping"
+            );
+        }
         // the observation statistics after this epoch's rollout (the next one moves them)
         let normalizer = self.collector.normalizer().cloned();
         // the value fit, beside the next rollout when pipelined
         if self.config.pipeline && self.state.epoch + 1 < self.config.epochs {
             self.fit_value_beside_next_rollout(
-                &rollout,
+                rollout.steps,
+                value_batch,
                 rng,
                 &mut update,
-                &normalizer,
                 stop,
                 progress,
             )?;
         } else {
             self.learner
-                .update_value(&rollout.batch, &mut rng, &mut update);
-            self.check_finite(&update, &rollout)?;
+                .update_value(value_batch, &mut rng, &mut update);
+            self.check_finite(&update, value_batch)?;
             self.actor = A::from_learner(&self.learner, &self.value);
         }
         Ok(Some(self.close_epoch(rollout, seconds, update, normalizer)))
@@ -496,32 +518,34 @@ where
     /// which the next call takes. A stop during it drops it and its observation statistics.
     fn fit_value_beside_next_rollout(
         &mut self,
-        rollout: &crate::rollout::Rollout,
+        rollout_steps: u64,
+        value_batch: &Batch,
         mut rng: StdRng,
         update: &mut UpdateReport,
-        normalizer: &Option<RunningMeanStd>,
         stop: &AtomicBool,
         progress: &mut dyn FnMut(u64),
     ) -> Result<(), TrainError> {
+        // the observation statistics after this epoch's rollout, restored if the next is dropped
+        let normalizer = self.collector.normalizer().cloned();
         // the new policy; the critic is not called during the rollout's steps
         self.actor = A::from_learner(&self.learner, &self.value);
         let next_seed = self.epoch_seed(self.state.epoch + 1);
-        let next_steps = self.state.env_steps + rollout.steps;
+        let next_steps = self.state.env_steps + rollout_steps;
         let ranks = self.comm.size() as u64;
         let (learner, collector, actor) = (&mut self.learner, &mut self.collector, &mut self.actor);
         let (next, next_s) = self.pipeline.fit_beside(
-            || learner.update_value(&rollout.batch, &mut rng, update),
+            || learner.update_value(value_batch, &mut rng, update),
             || {
                 collector.collect_steps(actor, next_seed, stop, &mut |steps| {
                     progress(next_steps + steps * ranks)
                 })
             },
         );
-        if let Err(e) = self.check_finite(update, rollout) {
+        if let Err(e) = self.check_finite(update, value_batch) {
             if next.is_some() {
                 self.collector.discard();
             }
-            self.collector.set_normalizer(normalizer.clone());
+            self.collector.set_normalizer(normalizer);
             return Err(e);
         }
         // the fitted critic gives the next rollout's values
@@ -535,18 +559,14 @@ where
                 })
             }
             // a stop during the next rollout drops it, and its observation statistics
-            None => self.collector.set_normalizer(normalizer.clone()),
+            None => self.collector.set_normalizer(normalizer),
         }
         Ok(())
     }
 
     /// [`TrainError::NonFinite`] when the update left a loss or parameter non-finite.
-    fn check_finite(
-        &self,
-        update: &UpdateReport,
-        rollout: &crate::rollout::Rollout,
-    ) -> Result<(), TrainError> {
-        match non_finite(update, &self.learner, &rollout.batch) {
+    fn check_finite(&self, update: &UpdateReport, batch: &Batch) -> Result<(), TrainError> {
+        match non_finite(update, &self.learner, batch) {
             Some(what) => Err(TrainError::NonFinite {
                 epoch: self.state.epoch + 1,
                 what,
@@ -867,6 +887,7 @@ mod tests {
             adv: vec![1.0, -1.0],
             ret: vec![3.0, 3.0],
             adv_scale: 2.0,
+            ..Batch::default()
         };
         let summary = batch_summary(&batch);
         assert!(

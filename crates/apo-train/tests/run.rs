@@ -44,7 +44,14 @@ fn rows_on_disk(dir: &Path) -> Vec<ProgressRow> {
 fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_stopped() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let device = Default::default();
-    for algo in [Algorithm::Apo, Algorithm::Ppo] {
+    // return capping carries its cap in the checkpoint; MVPI and CVaR reshape every epoch
+    for algo in [
+        Algorithm::Apo,
+        Algorithm::Ppo,
+        Algorithm::Mvpi,
+        Algorithm::Cvar,
+        Algorithm::Retcap,
+    ] {
         let (straight, split) = (
             tmp.path().join(format!("{algo}-straight")),
             tmp.path().join(format!("{algo}-split")),
@@ -66,6 +73,13 @@ fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_st
         assert_eq!(train(&mut run, Some(3)).len(), 3);
         run.checkpoint().expect("a checkpoint");
         drop(run);
+        let state = std::fs::read_to_string(split.join("checkpoints/latest/state.json"))
+            .expect("state.json");
+        assert_eq!(
+            state.contains("\"cap\""),
+            algo == Algorithm::Retcap,
+            "{algo}: the cap is in the checkpoint exactly for return capping: {state}"
+        );
         let mut run =
             Run::<NdArray>::resume(&split, &Launch::new(1), &device, None).expect("resumes");
         assert_eq!(run.epochs_done(), 3);

@@ -6,8 +6,8 @@ use std::collections::BTreeMap;
 
 use super::*;
 
-const ALGORITHMS: [&str; 8] = [
-    "apo", "papo", "trpo", "ppo", "a2c", "espo", "vmpo", "alphappo",
+const ALGORITHMS: [&str; 11] = [
+    "apo", "papo", "trpo", "ppo", "a2c", "espo", "vmpo", "alphappo", "mvpi", "cvar", "retcap",
 ];
 
 /// `(full key, its documentation, its value)` of every key `apo config` prints (optional keys

@@ -16,9 +16,12 @@
 mod a2c;
 mod alpha_ppo;
 mod apo;
+mod cvar;
 mod espo;
+mod mvpi;
 mod papo;
 mod ppo;
+mod retcap;
 mod trpo;
 mod vmpo;
 
@@ -30,6 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::objective::{ApoParams, HMax, Objective, PenaltyUnits, Switch};
 use crate::proximal::{ProximalConfig, ProximalStep};
+use crate::shaping::ShapingRule;
 use crate::trust_region::TrustRegionConfig;
 pub use crate::validate::ConfigError;
 pub(crate) use crate::validate::{check, finite_nonneg, shown};
@@ -37,9 +41,12 @@ pub(crate) use crate::validate::{check, finite_nonneg, shown};
 pub use a2c::A2cConfig;
 pub use alpha_ppo::AlphaPpoConfig;
 pub use apo::ApoConfig;
+pub use cvar::CvarConfig;
 pub use espo::EspoConfig;
+pub use mvpi::MvpiConfig;
 pub use papo::PapoConfig;
 pub use ppo::PpoConfig;
+pub use retcap::RetcapConfig;
 pub use trpo::TrpoConfig;
 pub use vmpo::VmpoConfig;
 
@@ -236,6 +243,10 @@ pub trait Settings: fmt::Debug {
     fn probability_factor(&self) -> Option<f64> {
         None
     }
+    /// How the epoch's batch is shaped before the update ([`crate::shaping`]), if it is.
+    fn shaping(&self) -> Option<ShapingRule> {
+        None
+    }
     /// Every key of the section with what it does and its range (relative dotted paths).
     fn key_docs(&self) -> Vec<(String, &'static str)>;
 }
@@ -329,6 +340,9 @@ algorithms! {
     Espo(EspoConfig) = "espo",
     AlphaPpo(AlphaPpoConfig) = "alphappo",
     Vmpo(VmpoConfig) = "vmpo",
+    Mvpi(MvpiConfig) = "mvpi",
+    Cvar(CvarConfig) = "cvar",
+    Retcap(RetcapConfig) = "retcap",
 }
 
 impl fmt::Display for Algorithm {

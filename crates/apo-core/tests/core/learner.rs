@@ -136,7 +136,27 @@ fn one_update_per_algorithm_reports_consistent_finite_numbers() {
             let vtheta = learner.value_params();
             assert_eq!(theta_j.len(), policy_params(&cfg));
             let batch = collect(&cfg, &theta_j, &vtheta, &hidden, &mut Rng::new(3));
-            let rb = to_ref(&batch, &cfg);
+            // MVPI, CVaR and return capping update on the shaped batch (tests/core/shaping.rs
+            // checks the shaping against hand computations)
+            let shaped = config.settings().shaping().map(|rule| {
+                let common = config.common();
+                apo_core::shaping::shape(
+                    &batch,
+                    rule,
+                    &mut apo_core::ShapingState::default(),
+                    common.gamma,
+                    common.lambda,
+                    &apo_core::Comm::default(),
+                )
+                .expect("a buffer's batch shapes")
+            });
+            let rb = to_ref(shaped.as_ref().map_or(&batch, |s| &s.policy), &cfg);
+            let rb_value = to_ref(
+                shaped
+                    .as_ref()
+                    .map_or(&batch, |s| s.value.as_ref().unwrap_or(&s.policy)),
+                &cfg,
+            );
 
             let report = learner
                 .update(&batch, &mut StdRng::seed_from_u64(0))
@@ -203,9 +223,10 @@ fn one_update_per_algorithm_reports_consistent_finite_numbers() {
             );
             let vsizes = [OBS, 8, 8, 1];
             let mse = mean(
-                &rb.obs
+                &rb_value
+                    .obs
                     .iter()
-                    .zip(&rb.ret)
+                    .zip(&rb_value.ret)
                     .map(|(x, r)| (ref_mlp(&vsizes, &vtheta, x)[0] - r).powi(2))
                     .collect::<Vec<_>>(),
             );
@@ -373,6 +394,18 @@ fn shorten(config: &mut AlgoConfig) {
             c.value_update.iters = 10;
         }
         AlgoConfig::AlphaPpo(c) => {
+            c.policy_update.iters = 10;
+            c.value_update.iters = 10;
+        }
+        AlgoConfig::Mvpi(c) => {
+            c.policy_update.iters = 10;
+            c.value_update.iters = 10;
+        }
+        AlgoConfig::Cvar(c) => {
+            c.policy_update.iters = 10;
+            c.value_update.iters = 10;
+        }
+        AlgoConfig::Retcap(c) => {
             c.policy_update.iters = 10;
             c.value_update.iters = 10;
         }

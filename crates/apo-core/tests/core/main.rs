@@ -15,5 +15,6 @@ mod hvp;
 mod learner;
 mod objectives;
 mod proximal;
+mod shaping;
 mod trust_region;
 mod variants;
