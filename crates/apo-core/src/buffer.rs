@@ -83,7 +83,9 @@ impl Default for Batch {
 impl Batch {
     /// The transitions `rows` (a contiguous range of `0..len`), for example one rank's share
     /// of a batch. The advantages are copied as they are (not normalized again); a path that
-    /// `rows` cuts keeps the part inside, as a path cut by the epoch's end.
+    /// `rows` cuts keeps the part inside, as a path cut by the epoch's end (bootstrapping from
+    /// the value of the row after the cut). Shaping each part of a batch cut this way is not
+    /// shaping the whole: the parts' paths and returns are the pieces'.
     ///
     /// # Panics
     /// If `rows` reaches past `len`.
@@ -112,10 +114,17 @@ impl Batch {
             reward: part(&self.reward),
             paths: self
                 .path_ranges()
-                .filter(|&(start, end, _)| end > rows.start && start < rows.end)
+                .filter(|&(start, end, _)| {
+                    rows.start < rows.end && end > rows.start && start < rows.end
+                })
                 .map(|(start, end, path)| PathEnd {
                     end: end.min(rows.end) - rows.start,
-                    last_value: path.last_value,
+                    // a path `rows` cuts bootstraps from the value of the row after the cut
+                    last_value: if end > rows.end {
+                        self.value[rows.end]
+                    } else {
+                        path.last_value
+                    },
                     episode: path.episode && start >= rows.start && end <= rows.end,
                 })
                 .collect(),
@@ -280,19 +289,34 @@ impl RolloutBuffer {
         b.len += 1;
     }
 
-    /// Ends the current path, bootstrapping from `last_value` (0 when terminated,
-    /// `V(s_T)` when truncated or cut by the end of the epoch), and computes its
-    /// `delta`, (unnormalized) GAE advantages and rewards-to-go.
+    /// Ends the current path with its episode, bootstrapping from `last_value` (0 when
+    /// terminated, `V(s_T)` when truncated by the time limit), and computes its `delta`,
+    /// (unnormalized) GAE advantages and rewards-to-go. A path the end of the epoch cuts ends
+    /// with [`RolloutBuffer::finish_cut_path`].
     ///
     /// # Panics
     /// If paths ended by [`RolloutBuffer::end_path`] are still waiting for
     /// [`RolloutBuffer::finish_paths`].
     pub fn finish_path(&mut self, last_value: f32) {
+        self.finish_now(last_value, true);
+    }
+
+    /// [`RolloutBuffer::finish_path`] for the path the end of the epoch cuts, bootstrapping from
+    /// `V(s_T)` = `last_value`: it ends no episode (its return is not known; see
+    /// [`PathEnd::episode`]).
+    ///
+    /// # Panics
+    /// As [`RolloutBuffer::finish_path`].
+    pub fn finish_cut_path(&mut self, last_value: f32) {
+        self.finish_now(last_value, false);
+    }
+
+    fn finish_now(&mut self, last_value: f32, episode: bool) {
         assert!(
             self.pending.is_empty(),
             "finish_path with paths waiting for finish_paths"
         );
-        self.finish_path_at(self.batch.len, last_value, true);
+        self.finish_path_at(self.batch.len, last_value, episode);
     }
 
     /// Ends the current path without computing anything yet: the critic's values of its steps,

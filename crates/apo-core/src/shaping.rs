@@ -113,27 +113,68 @@ pub struct Shaped {
     pub report: ShapingReport,
 }
 
-/// A batch that does not record what shaping needs: a reward per row and paths that cover its
-/// rows (a batch from [`crate::buffer::RolloutBuffer`] has both).
+/// Why a batch cannot be shaped.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error(
-    "the batch of {rows} rows records {rewards} rewards and paths ending at rows {ends}: the risk shaping (MVPI, CVaR, return capping) needs a reward per row and paths, in row order, that end at row {rows} (Batch::reward, Batch::paths; RolloutBuffer fills both)"
-)]
-pub struct ShapingError {
-    /// The batch's rows.
-    pub rows: usize,
-    /// The rewards it records.
-    pub rewards: usize,
-    /// Where its paths end (at most the first 8, then `…`).
-    pub ends: String,
+pub enum ShapingError {
+    /// The batch does not record what shaping needs: a reward per row and paths that cover
+    /// its rows, with every per-row field of its length (a batch from
+    /// [`crate::buffer::RolloutBuffer`] has them).
+    #[error(
+        "the batch of {rows} rows records {rewards} rewards and paths ending at rows {ends}: the risk shaping (MVPI, CVaR, return capping) needs a reward per row, paths in row order that end at row {rows}, and every per-row field with {rows} rows (Batch::reward, Batch::paths; RolloutBuffer fills them)"
+    )]
+    Unrecorded {
+        /// The batch's rows.
+        rows: usize,
+        /// The rewards it records.
+        rewards: usize,
+        /// Where its paths end (at most the first 8, then `…`).
+        ends: String,
+    },
+    /// Another rank's batch cannot be shaped (so no rank shapes, and none waits for it).
+    #[error("another rank's batch cannot be shaped (its error names what it lacks)")]
+    OtherRank,
+    /// CVaR's selection of the worst episodes in a data-parallel run: each rank would keep its
+    /// own share of them, some none at all.
+    #[error(
+        "CVaR's selection of the worst episodes runs in one process only: a data-parallel run of {ranks} ranks is refused"
+    )]
+    Distributed {
+        /// The run's ranks.
+        ranks: usize,
+    },
 }
 
-/// `Ok` when `batch` records a reward per row and paths, in row order, ending at its last row.
-fn check(batch: &Batch) -> Result<(), ShapingError> {
+/// `Ok` when `batch` records a reward per row and paths, in row order, ending at its last row,
+/// and its per-row fields have its rows; on every rank of `comm` alike (a rank whose batch
+/// fails makes every rank refuse, so that none waits for it in a collective).
+fn check(batch: &Batch, comm: &Comm) -> Result<(), ShapingError> {
+    let n = batch.len;
     let ordered = batch.path_ranges().all(|(start, end, _)| start < end);
-    let covered = batch.paths.last().map_or(0, |p| p.end) == batch.len;
-    if batch.reward.len() == batch.len && ordered && covered {
+    let covered = batch.paths.last().map_or(0, |p| p.end) == n;
+    let rows = [
+        &batch.value,
+        &batch.logp,
+        &batch.delta,
+        &batch.adv,
+        &batch.ret,
+    ]
+    .iter()
+    .all(|v| v.len() == n)
+        && [&batch.obs, &batch.actions, &batch.dist].iter().all(|v| {
+            if n == 0 {
+                v.is_empty()
+            } else {
+                v.len() % n == 0
+            }
+        });
+    let mine = batch.reward.len() == n && ordered && covered && rows;
+    let mut bad = [f64::from(u8::from(!mine))];
+    comm.max(&mut bad);
+    if bad[0] == 0.0 {
         return Ok(());
+    }
+    if mine {
+        return Err(ShapingError::OtherRank);
     }
     let mut ends: Vec<String> = batch
         .paths
@@ -144,8 +185,8 @@ fn check(batch: &Batch) -> Result<(), ShapingError> {
     if batch.paths.len() > 8 {
         ends.push("…".to_string());
     }
-    Err(ShapingError {
-        rows: batch.len,
+    Err(ShapingError::Unrecorded {
+        rows: n,
         rewards: batch.reward.len(),
         ends: format!("[{}]", ends.join(", ")),
     })
@@ -162,14 +203,15 @@ pub fn episode_returns(batch: &Batch) -> Vec<f64> {
 }
 
 /// The lower empirical α-quantile of `values`: the `⌈α·N⌉`-th smallest (at least the
-/// smallest); `None` for no value. Sorts `values` (n log n).
+/// smallest), `α·N` taken as the integer it is within rounding (0.1 · 30 is 3, not the
+/// 3.0000000000000004 of floating point); `None` for no value. Sorts `values` (n log n).
 pub fn lower_quantile(values: &mut [f64], alpha: f64) -> Option<f64> {
     if values.is_empty() {
         return None;
     }
     values.sort_by(f64::total_cmp);
     let n = values.len();
-    let rank = ((alpha * n as f64).ceil() as usize).clamp(1, n);
+    let rank = ((alpha * n as f64 - 1e-9).ceil() as usize).clamp(1, n);
     Some(values[rank - 1])
 }
 
@@ -283,6 +325,8 @@ fn select_paths(
 /// `comm` ([`lower_quantile`]); `None` when none ended.
 fn value_at_risk(batch: &Batch, alpha: f64, comm: &Comm) -> Option<f64> {
     let mut returns: Vec<f64> = comm.gather(&episode_returns(batch)).concat();
+    // a non-finite return ranks nothing (a NaN would make every `<=` false)
+    returns.retain(|r| r.is_finite());
     lower_quantile(&mut returns, alpha)
 }
 
@@ -291,8 +335,9 @@ fn value_at_risk(batch: &Batch, alpha: f64, comm: &Comm) -> Option<f64> {
 /// to epoch (updated here).
 ///
 /// # Errors
-/// [`ShapingError`] when the batch does not record a reward per row and paths that cover its
-/// rows; `state` is unchanged then.
+/// [`ShapingError`] when a rank's batch does not record a reward per row and paths that cover
+/// its rows, or when CVaR's selection is asked of a data-parallel run; `state` is unchanged
+/// then.
 pub fn shape(
     batch: &Batch,
     rule: ShapingRule,
@@ -301,7 +346,12 @@ pub fn shape(
     lambda: f64,
     comm: &Comm,
 ) -> Result<Shaped, ShapingError> {
-    check(batch)?;
+    check(batch, comm)?;
+    if matches!(rule, ShapingRule::WorstEpisodes { .. }) && comm.is_distributed() {
+        // each rank would keep its own share of the worst episodes, some none at all, and the
+        // proximal step's collectives would then differ between ranks (a deadlock)
+        return Err(ShapingError::Distributed { ranks: comm.size() });
+    }
     Ok(match rule {
         ShapingRule::MeanVariance { lambda: weight } => {
             let mut totals = [
@@ -387,9 +437,12 @@ pub fn shape(
                 ),
                 None => batch.clone(),
             };
-            // C_{k+1} = max(C_k + η (VaR_α(π_k) − C_k), C_M)
+            // C_{k+1} = max(C_k + η (VaR_α(π_k) − C_k), C_M); a cap that is not finite (set by
+            // hand) stays where it is
             if let (Some(cap), Some(var)) = (cap, var) {
-                state.cap = Some((cap + eta * (var - cap)).max(min_cap));
+                if cap.is_finite() {
+                    state.cap = Some((cap + eta * (var - cap)).max(min_cap));
+                }
             }
             Shaped {
                 policy,

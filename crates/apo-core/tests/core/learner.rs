@@ -61,7 +61,7 @@ fn collect(
         match t {
             12 => buf.finish_path(0.0), // terminated
             25 => buf.finish_path(ref_mlp(&vsizes, vtheta, &rng.normals(OBS, 1.0))[0] as f32), // truncated
-            39 => buf.finish_path(0.3), // cut by the epoch
+            39 => buf.finish_cut_path(0.3), // cut by the epoch
             _ => {}
         }
     }

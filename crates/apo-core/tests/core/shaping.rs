@@ -10,8 +10,8 @@ use apo_core::buffer::{Batch, BufferLayout, PathEnd, RolloutBuffer};
 use apo_core::policy::{ActionKind, MlpPolicyConfig};
 use apo_core::proximal::ProximalConfig;
 use apo_core::shaping::{
-    capped_rewards, episode_returns, lower_quantile, mean_variance_rewards, shape, ShapingRule,
-    ShapingState,
+    capped_rewards, episode_returns, lower_quantile, mean_variance_rewards, shape, ShapingError,
+    ShapingRule, ShapingState,
 };
 use apo_core::value::ValueConfig;
 use apo_core::{Comm, Learner};
@@ -190,6 +190,10 @@ fn mean_variance_rewards_are_r_minus_lambda_r2_plus_2_lambda_r_y() {
 #[test]
 fn the_lower_quantile_is_the_ceil_alpha_n_th_smallest() {
     let q = |alpha: f64| lower_quantile(&mut [5.0, 1.0, 3.0, 2.0, 4.0], alpha);
+    // 0.07 · 100 is 7.000000000000001 in floating point: still the 7th smallest
+    let hundred: Vec<f64> = (1..=100).map(f64::from).collect();
+    assert_eq!(lower_quantile(&mut hundred.clone(), 0.07), Some(7.0));
+    assert_eq!(lower_quantile(&mut hundred[..30].to_vec(), 0.1), Some(3.0));
     assert_eq!(q(0.4), Some(2.0)); // ⌈2⌉ = 2nd
     assert_eq!(q(0.41), Some(3.0)); // ⌈2.05⌉ = 3rd
     assert_eq!(q(1.0), Some(5.0));
@@ -487,12 +491,49 @@ fn a_batch_without_rewards_and_paths_is_refused_naming_what_it_lacks() {
     };
     let err = shape(&b, rule, &mut state, GAMMA, LAMBDA, &Comm::default()).expect_err("refused");
     assert_eq!(
-        (err.rows, err.rewards, err.ends.as_str()),
-        (10, 10, "[3, 7]")
+        err,
+        ShapingError::Unrecorded {
+            rows: 10,
+            rewards: 10,
+            ends: "[3, 7]".to_string()
+        }
     );
     assert!(err.to_string().contains("10 rows"), "{err}");
     assert_eq!(state.cap, Some(1.0), "nothing changed");
     let mut b = batch();
     b.reward.clear();
     assert!(shape(&b, rule, &mut state, GAMMA, LAMBDA, &Comm::default()).is_err());
+    // a per-row field of another length is refused, not a panic
+    let mut b = batch();
+    b.value.pop();
+    assert!(shape(&b, rule, &mut state, GAMMA, LAMBDA, &Comm::default()).is_err());
+    assert_eq!(state.cap, Some(1.0), "nothing changed");
+}
+
+#[test]
+fn non_finite_returns_and_caps_move_nothing() {
+    // a NaN return ranks nothing: the quantile is over the finite ones (6 and 0.5)
+    let mut b = batch();
+    b.reward[0] = f32::NAN;
+    let s = shape(
+        &b,
+        ShapingRule::WorstEpisodes { alpha: 0.5 },
+        &mut ShapingState::default(),
+        GAMMA,
+        LAMBDA,
+        &Comm::default(),
+    )
+    .expect("shapes");
+    assert_eq!(s.report.level, 0.5, "B's return");
+    // a cap set to +∞ by hand stays there (it would become NaN)
+    let mut state = ShapingState {
+        cap: Some(f64::INFINITY),
+    };
+    let rule = ShapingRule::ReturnCap {
+        alpha: 0.5,
+        eta: 0.5,
+        min_cap: f64::NEG_INFINITY,
+    };
+    shape(&batch(), rule, &mut state, GAMMA, LAMBDA, &Comm::default()).expect("shapes");
+    assert_eq!(state.cap, Some(f64::INFINITY));
 }
