@@ -7,8 +7,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{check, AlgorithmConfig, Common, ConfigError, PolicyStep, PpoConfig, Settings};
-use crate::objective::Objective;
+use super::{check, shaped_ppo_settings, AlgorithmConfig, ConfigError, PpoConfig};
 use crate::proximal::ProximalConfig;
 use crate::shaping::ShapingRule;
 
@@ -32,17 +31,21 @@ pub struct CvarConfig {
 }
 
 impl CvarConfig {
-    /// The PPO update it selects the episodes for (flat keys of `[algo.cvar]`).
-    fn ppo(&self) -> PpoConfig {
-        PpoConfig {
-            gamma: self.gamma,
-            lambda: self.lambda,
-            clip: self.clip,
-            policy_update: self.policy_update,
-            value_update: self.value_update,
-        }
+    const RISK_DOCS: &'static [(&'static str, &'static str)] = &[(
+        "alpha",
+        "α, the tail's probability: the update sees the episodes at or below the batch's α-quantile of the return (1: PPO); (0, 1]",
+    )];
+
+    fn risk_check(&self) -> Result<(), ConfigError> {
+        check_alpha("alpha", self.alpha)
+    }
+
+    fn rule(&self) -> ShapingRule {
+        ShapingRule::WorstEpisodes { alpha: self.alpha }
     }
 }
+
+shaped_ppo_settings!(CvarConfig);
 
 /// Checks a tail probability α ∈ (0, 1] named `field`.
 pub(crate) fn check_alpha(field: &str, alpha: f64) -> Result<(), ConfigError> {
@@ -52,38 +55,6 @@ pub(crate) fn check_alpha(field: &str, alpha: f64) -> Result<(), ConfigError> {
         alpha,
         "must be in (0, 1]",
     )
-}
-
-impl Settings for CvarConfig {
-    fn common(&self) -> Common {
-        self.ppo().common()
-    }
-
-    fn validate(&self) -> Result<(), ConfigError> {
-        check_alpha("alpha", self.alpha)?;
-        self.ppo().validate()
-    }
-
-    fn objective(&self) -> Objective {
-        self.ppo().objective()
-    }
-
-    fn policy_step(&self) -> PolicyStep<'_> {
-        PolicyStep::Proximal(crate::proximal::ProximalStep::new(&self.policy_update))
-    }
-
-    fn shaping(&self) -> Option<ShapingRule> {
-        Some(ShapingRule::WorstEpisodes { alpha: self.alpha })
-    }
-
-    fn key_docs(&self) -> Vec<(String, &'static str)> {
-        let mut docs = self.ppo().key_docs();
-        docs.push((
-            "alpha".to_string(),
-            "α, the tail's probability: the update sees the episodes at or below the batch's α-quantile of the return (1: PPO); (0, 1]",
-        ));
-        docs
-    }
 }
 
 impl AlgorithmConfig for CvarConfig {

@@ -261,6 +261,60 @@ pub trait AlgorithmConfig:
     fn paper_defaults() -> Self;
 }
 
+/// The [`Settings`] of an algorithm that is PPO on a shaped batch (`mvpi`, `cvar`, `retcap`;
+/// [`crate::shaping`]): its struct has PPO's fields (`gamma`, `lambda`, `clip`,
+/// `policy_update`, `value_update`) flat beside its own — `serde` cannot deny unknown fields
+/// through `flatten` — and, as inherent items, `fn risk_check(&self) -> Result<(),
+/// ConfigError>`, `fn rule(&self) -> ShapingRule` and `const RISK_DOCS: &[(&str, &str)]`.
+macro_rules! shaped_ppo_settings {
+    ($config:ty) => {
+        impl $config {
+            /// The PPO update the batch is shaped for.
+            fn ppo(&self) -> $crate::algorithm::PpoConfig {
+                $crate::algorithm::PpoConfig {
+                    gamma: self.gamma,
+                    lambda: self.lambda,
+                    clip: self.clip,
+                    policy_update: self.policy_update,
+                    value_update: self.value_update,
+                }
+            }
+        }
+
+        impl $crate::algorithm::Settings for $config {
+            fn common(&self) -> $crate::algorithm::Common {
+                self.ppo().common()
+            }
+
+            fn validate(&self) -> Result<(), $crate::algorithm::ConfigError> {
+                self.risk_check()?;
+                self.ppo().validate()
+            }
+
+            fn objective(&self) -> $crate::objective::Objective {
+                self.ppo().objective()
+            }
+
+            fn policy_step(&self) -> $crate::algorithm::PolicyStep<'_> {
+                $crate::algorithm::PolicyStep::Proximal($crate::proximal::ProximalStep::new(
+                    &self.policy_update,
+                ))
+            }
+
+            fn shaping(&self) -> Option<$crate::shaping::ShapingRule> {
+                Some(self.rule())
+            }
+
+            fn key_docs(&self) -> Vec<(String, &'static str)> {
+                let mut docs = self.ppo().key_docs();
+                docs.extend(Self::RISK_DOCS.iter().map(|&(k, d)| (k.to_string(), d)));
+                docs
+            }
+        }
+    };
+}
+use shaped_ppo_settings;
+
 /// Generates [`Algorithm`], [`AlgoConfig`] and their dispatch from one line per algorithm:
 /// `Variant(SettingsType) = "name"`.
 macro_rules! algorithms {

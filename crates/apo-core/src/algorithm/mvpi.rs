@@ -6,8 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{check, AlgorithmConfig, Common, ConfigError, PolicyStep, PpoConfig, Settings};
-use crate::objective::Objective;
+use super::{check, shaped_ppo_settings, AlgorithmConfig, ConfigError, PpoConfig};
 use crate::proximal::ProximalConfig;
 use crate::shaping::ShapingRule;
 
@@ -30,15 +29,23 @@ pub struct MvpiConfig {
 }
 
 impl MvpiConfig {
-    /// The PPO update it shapes the batch for (its fields are flat keys of `[algo.mvpi]`,
-    /// as `serde` cannot deny unknown fields through `flatten`).
-    fn ppo(&self) -> PpoConfig {
-        PpoConfig {
-            gamma: self.gamma,
-            lambda: self.lambda,
-            clip: self.clip,
-            policy_update: self.policy_update,
-            value_update: self.value_update,
+    const RISK_DOCS: &'static [(&'static str, &'static str)] = &[(
+        "mv_lambda",
+        "λ, the weight of the per-step reward's variance: PPO on r − λr² + 2λry, y the batch's mean reward (0: PPO); [0, 1000]",
+    )];
+
+    fn risk_check(&self) -> Result<(), ConfigError> {
+        check(
+            self.mv_lambda.is_finite() && (0.0..=Self::MAX).contains(&self.mv_lambda),
+            "mv_lambda",
+            self.mv_lambda,
+            "must be in [0, 1000]",
+        )
+    }
+
+    fn rule(&self) -> ShapingRule {
+        ShapingRule::MeanVariance {
+            lambda: self.mv_lambda,
         }
     }
 
@@ -47,44 +54,7 @@ impl MvpiConfig {
     const MAX: f64 = 1000.0;
 }
 
-impl Settings for MvpiConfig {
-    fn common(&self) -> Common {
-        self.ppo().common()
-    }
-
-    fn validate(&self) -> Result<(), ConfigError> {
-        check(
-            self.mv_lambda.is_finite() && (0.0..=Self::MAX).contains(&self.mv_lambda),
-            "mv_lambda",
-            self.mv_lambda,
-            "must be in [0, 1000]",
-        )?;
-        self.ppo().validate()
-    }
-
-    fn objective(&self) -> Objective {
-        self.ppo().objective()
-    }
-
-    fn policy_step(&self) -> PolicyStep<'_> {
-        PolicyStep::Proximal(crate::proximal::ProximalStep::new(&self.policy_update))
-    }
-
-    fn shaping(&self) -> Option<ShapingRule> {
-        Some(ShapingRule::MeanVariance {
-            lambda: self.mv_lambda,
-        })
-    }
-
-    fn key_docs(&self) -> Vec<(String, &'static str)> {
-        let mut docs = self.ppo().key_docs();
-        docs.push((
-            "mv_lambda".to_string(),
-            "λ, the weight of the per-step reward's variance: PPO on r − λr² + 2λry, y the batch's mean reward (0: PPO); [0, 1000]",
-        ));
-        docs
-    }
-}
+shaped_ppo_settings!(MvpiConfig);
 
 impl AlgorithmConfig for MvpiConfig {
     const ABOUT: &'static str =

@@ -8,8 +8,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::cvar::check_alpha;
-use super::{check, AlgorithmConfig, Common, ConfigError, PolicyStep, PpoConfig, Settings};
-use crate::objective::Objective;
+use super::{check, shaped_ppo_settings, AlgorithmConfig, ConfigError, PpoConfig};
 use crate::proximal::ProximalConfig;
 use crate::shaping::ShapingRule;
 
@@ -36,30 +35,26 @@ pub struct RetcapConfig {
 }
 
 impl RetcapConfig {
-    /// The PPO update it caps the returns for (flat keys of `[algo.retcap]`).
-    fn ppo(&self) -> PpoConfig {
-        PpoConfig {
-            gamma: self.gamma,
-            lambda: self.lambda,
-            clip: self.clip,
-            policy_update: self.policy_update,
-            value_update: self.value_update,
-        }
-    }
-}
-
-impl RetcapConfig {
     /// The largest |C_M| accepted but −∞: returns beyond it leave f32's precision for the
     /// rewards it shapes.
     const MAX_CAP: f64 = 1e9;
-}
 
-impl Settings for RetcapConfig {
-    fn common(&self) -> Common {
-        self.ppo().common()
-    }
+    const RISK_DOCS: &'static [(&'static str, &'static str)] = &[
+        (
+            "alpha",
+            "α, the tail's probability whose return quantile the cap follows; (0, 1]",
+        ),
+        (
+            "eta",
+            "η, the cap's step toward each epoch's α-quantile: C ← C + η(VaR − C); [0, 1]",
+        ),
+        (
+            "min_cap",
+            "C_M, the lowest cap, a return (-inf: none); -inf or [-1e9, 1e9]",
+        ),
+    ];
 
-    fn validate(&self) -> Result<(), ConfigError> {
+    fn risk_check(&self) -> Result<(), ConfigError> {
         check_alpha("alpha", self.alpha)?;
         check(
             (0.0..=1.0).contains(&self.eta),
@@ -73,45 +68,19 @@ impl Settings for RetcapConfig {
             "min_cap",
             self.min_cap,
             "must be -inf (no minimum) or in [-1e9, 1e9]",
-        )?;
-        self.ppo().validate()
+        )
     }
 
-    fn objective(&self) -> Objective {
-        self.ppo().objective()
-    }
-
-    fn policy_step(&self) -> PolicyStep<'_> {
-        PolicyStep::Proximal(crate::proximal::ProximalStep::new(&self.policy_update))
-    }
-
-    fn shaping(&self) -> Option<ShapingRule> {
-        Some(ShapingRule::ReturnCap {
+    fn rule(&self) -> ShapingRule {
+        ShapingRule::ReturnCap {
             alpha: self.alpha,
             eta: self.eta,
             min_cap: self.min_cap,
-        })
-    }
-
-    fn key_docs(&self) -> Vec<(String, &'static str)> {
-        let mut docs = self.ppo().key_docs();
-        docs.extend([
-            (
-                "alpha".to_string(),
-                "α, the tail's probability whose return quantile the cap follows; (0, 1]",
-            ),
-            (
-                "eta".to_string(),
-                "η, the cap's step toward each epoch's α-quantile: C ← C + η(VaR − C); [0, 1]",
-            ),
-            (
-                "min_cap".to_string(),
-                "C_M, the lowest cap, a return (-inf: none); -inf or [-1e9, 1e9]",
-            ),
-        ]);
-        docs
+        }
     }
 }
+
+shaped_ppo_settings!(RetcapConfig);
 
 impl AlgorithmConfig for RetcapConfig {
     const ABOUT: &'static str = "Return capping with PPO (CVaR as the expected capped return)";
