@@ -29,14 +29,18 @@ pub struct PlotOptions {
     /// Plot this numeric column of `progress.csv` (e.g. `kl`, `ls_rejected_objective`,
     /// `bias`; `true`/`false` as 1/0) instead of the returns (`None`).
     pub column: Option<String>,
+    /// Whether a plain file at `out` is replaced (`--force`); without it, a file at `out` —
+    /// one that appeared while the figure was drawn included — stays and the plot fails.
+    pub replace: bool,
 }
 
 impl Default for PlotOptions {
-    /// No smoothing.
+    /// No smoothing; an existing file is not replaced.
     fn default() -> Self {
         Self {
             smooth: 1,
             column: None,
+            replace: false,
         }
     }
 }
@@ -741,16 +745,21 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
             if run.skipped == 1 { "" } else { "s" }
         );
     }
-    draw(&Figure::new(&runs, options, false)?, out)
+    draw(&Figure::new(&runs, options, false)?, out, options.replace)
 }
 
-fn draw(figure: &Figure<'_>, out: &Path) -> anyhow::Result<()> {
-    render_image(out, SIZE, &|a| figure.draw(a), &|a| figure.draw(a))
+fn draw(figure: &Figure<'_>, out: &Path, replace: bool) -> anyhow::Result<()> {
+    let place = if replace {
+        apo_train::atomic::Place::ReplacePlainFile
+    } else {
+        apo_train::atomic::Place::New
+    };
+    render_image(out, SIZE, &|a| figure.draw(a), &|a| figure.draw(a), place)
 }
 
 /// Draws a figure of `size` pixels into `out`, PNG or SVG by its extension: in memory, then
-/// written atomically (a failed or interrupted draw leaves `out` as it was). `svg` and
-/// `bitmap` draw the same figure on either backend.
+/// written atomically (a failed or interrupted draw leaves `out` as it was) and placed as
+/// `place` says. `svg` and `bitmap` draw the same figure on either backend.
 ///
 /// # Errors
 /// Another extension, a drawing error, a failed write (naming `out`).
@@ -759,6 +768,7 @@ pub(crate) fn render_image(
     size: (u32, u32),
     svg: &dyn Fn(DrawingArea<SVGBackend<'_>, Shift>) -> anyhow::Result<()>,
     bitmap: &dyn Fn(DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
+    place: apo_train::atomic::Place,
 ) -> anyhow::Result<()> {
     apo_train::video::load_font()?;
     let bytes = match ImageFormat::of(out)? {
@@ -784,7 +794,8 @@ pub(crate) fn render_image(
             png_bytes
         }
     };
-    apo_train::atomic::write(out, &bytes).with_context(|| format!("cannot write {}", out.display()))
+    apo_train::atomic::write_placed(out, &bytes, place)
+        .with_context(|| format!("cannot write {}", out.display()))
 }
 
 /// Plots groups of runs into `out` (`.png` or `.svg`), one curve set per group `(label,
@@ -803,7 +814,7 @@ pub fn plot_seed_groups(
         .iter()
         .map(|(label, dirs)| Run::seeds(label, dirs, options.smooth))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    draw(&Figure::new(&runs, options, true)?, out)
+    draw(&Figure::new(&runs, options, true)?, out, options.replace)
 }
 
 #[cfg(test)]

@@ -1025,21 +1025,21 @@ pub fn write(
             }
         }
     }
-    run_dir::claim_outputs(out, REPORT_MARKER, &names)?;
+    let places = run_dir::claim_outputs(out, REPORT_MARKER, &names)?;
     let mut written = Vec::new();
     for (name, text) in [
         ("report.md", markdown(report)),
         ("report.csv", csv(report)?),
     ] {
         let path = out.join(name);
-        apo_train::atomic::write(&path, text.as_bytes())
+        apo_train::atomic::write_placed(&path, text.as_bytes(), places.of(name))
             .with_context(|| format!("cannot write {}", path.display()))?;
         written.push(path);
     }
     if !report.statistics.is_empty() {
         let path = out.join(STATISTICS_JSON);
         let text = serde_json::to_string_pretty(&report.statistics)?;
-        apo_train::atomic::write(&path, text.as_bytes())
+        apo_train::atomic::write_placed(&path, text.as_bytes(), places.of(STATISTICS_JSON))
             .with_context(|| format!("cannot write {}", path.display()))?;
         written.push(path);
     }
@@ -1048,13 +1048,23 @@ pub fn write(
             continue;
         };
         let title = m.metric.title(report.last);
+        let figures = statistics_figures(m.metric);
         let [profile_png, profile_svg, intervals_png, intervals_svg] =
-            statistics_figures(m.metric).map(|name| out.join(name));
-        for path in [&profile_png, &profile_svg] {
-            crate::stats_plot::profiles(analysis, &title, "normalized score τ", path)?;
+            figures.clone().map(|name| out.join(name));
+        for (path, name) in [&profile_png, &profile_svg].into_iter().zip(&figures[..2]) {
+            crate::stats_plot::profiles(
+                analysis,
+                &title,
+                "normalized score τ",
+                path,
+                places.of(name),
+            )?;
         }
-        for path in [&intervals_png, &intervals_svg] {
-            crate::stats_plot::intervals(analysis, &title, path)?;
+        for (path, name) in [&intervals_png, &intervals_svg]
+            .into_iter()
+            .zip(&figures[2..])
+        {
+            crate::stats_plot::intervals(analysis, &title, path, places.of(name))?;
         }
         written.extend([profile_png, profile_svg, intervals_png, intervals_svg]);
     }
@@ -1075,6 +1085,8 @@ pub fn write(
             &crate::plot::PlotOptions {
                 smooth,
                 column: None,
+                // the report's own figure, there from an earlier report
+                replace: places.of(&curves(env)) == apo_train::atomic::Place::ReplacePlainFile,
             },
         )?;
         written.push(path);

@@ -487,6 +487,12 @@ pub enum Standing {
         /// The task's id.
         id: String,
     },
+    /// An apo process holds its run's lock: it is training now, outside Slurm's queue (a
+    /// local sweep, `apo train --resume`, a task whose queue entry is gone).
+    Training {
+        /// What the lock file names (`pid <n>`), or empty.
+        holder: String,
+    },
     /// Its task waits in Slurm's queue.
     Queued {
         /// The task's id.
@@ -544,12 +550,16 @@ pub fn standings(
     for run in runs {
         let dir = out.join(&run.name);
         let entry = in_queue.get(&run.name);
+        let holder = run_dir::lock_holder(&dir);
         let standing = match entry {
             Some(e) if e.active() && e.state == "PENDING" => Standing::Queued {
                 id: e.id.clone(),
                 reason: e.reason.clone(),
             },
             Some(e) if e.active() => Standing::Running { id: e.id.clone() },
+            _ if holder.is_some() => Standing::Training {
+                holder: holder.clone().unwrap_or_default(),
+            },
             _ => {
                 let submission = submitted.get(&run.name);
                 // the latest task ended on an error (not on a stop signal, which checkpoints)

@@ -44,15 +44,6 @@ impl Scores {
         }
     }
 
-    /// The scores without task `t`.
-    fn without_task(&self, t: usize) -> Scores {
-        let mut tasks = self.tasks.clone();
-        if t < tasks.len() {
-            tasks.remove(t);
-        }
-        Scores { tasks }
-    }
-
     /// Every run's score of every task, in task order.
     fn all(&self) -> impl Iterator<Item = f64> + '_ {
         self.tasks.iter().flatten().copied()
@@ -126,6 +117,182 @@ impl Aggregate {
             }
         }
     }
+
+    /// Its value on `scores` without each task in turn (the leave-one-task-out values, task
+    /// order), all of them in `O(n log n)` of the `n` runs: a sum of the others is a prefix
+    /// and a suffix sum (no difference of large values), the median skips one place of the
+    /// sorted task means, and the interquartile mean finds its window in the sorted runs by a
+    /// binary search and sums it in a tree of pairwise sums.
+    fn without_each_task(self, scores: &Scores) -> Vec<f64> {
+        let tasks = scores.tasks.len();
+        match self {
+            Aggregate::Mean => {
+                let sums = PrefixSuffix::new(&scores.task_means());
+                (0..tasks)
+                    .map(|t| sums.without(t) / (tasks - 1) as f64)
+                    .collect()
+            }
+            Aggregate::Median => {
+                let means = scores.task_means();
+                let mut order: Vec<usize> = (0..tasks).collect();
+                order.sort_by(|&a, &b| means[a].total_cmp(&means[b]));
+                let mut place = vec![0; tasks];
+                for (i, &t) in order.iter().enumerate() {
+                    place[t] = i;
+                }
+                (0..tasks)
+                    .map(|t| {
+                        // the sorted means without the one at place[t]
+                        let at = |i: usize| means[order[if i < place[t] { i } else { i + 1 }]];
+                        quantile_by(tasks - 1, 0.5, at)
+                    })
+                    .collect()
+            }
+            Aggregate::Iqm => iqm_without_each_task(scores),
+            Aggregate::OptimalityGap => {
+                let clipped: Vec<f64> = scores
+                    .tasks
+                    .iter()
+                    .map(|runs| runs.iter().map(|s| s.min(1.0)).sum())
+                    .collect();
+                let sums = PrefixSuffix::new(&clipped);
+                let runs: usize = scores.tasks.iter().map(Vec::len).sum();
+                (0..tasks)
+                    .map(|t| 1.0 - sums.without(t) / (runs - scores.tasks[t].len()) as f64)
+                    .collect()
+            }
+        }
+    }
+}
+
+/// The sums of a list without one entry, each `O(1)` after `O(n)`: the sum before it plus the
+/// sum after it.
+struct PrefixSuffix {
+    /// `prefix[i]`: the sum of the entries before `i`.
+    prefix: Vec<f64>,
+    /// `suffix[i]`: the sum of the entries from `i` on.
+    suffix: Vec<f64>,
+}
+
+impl PrefixSuffix {
+    fn new(values: &[f64]) -> Self {
+        let mut prefix = vec![0.0; values.len() + 1];
+        let mut suffix = vec![0.0; values.len() + 1];
+        for (i, v) in values.iter().enumerate() {
+            prefix[i + 1] = prefix[i] + v;
+        }
+        for (i, v) in values.iter().enumerate().rev() {
+            suffix[i] = suffix[i + 1] + v;
+        }
+        Self { prefix, suffix }
+    }
+
+    /// The sum of every entry but the `i`-th.
+    fn without(&self, i: usize) -> f64 {
+        self.prefix[i] + self.suffix[i + 1]
+    }
+}
+
+/// [`quantile`] of the `n` sorted values `at(0), …, at(n − 1)` (linear interpolation).
+fn quantile_by(n: usize, p: f64, at: impl Fn(usize) -> f64) -> f64 {
+    if n == 0 {
+        return f64::NAN;
+    }
+    let position = p.clamp(0.0, 1.0) * (n - 1) as f64;
+    let below = position.floor() as usize;
+    let above = (below + 1).min(n - 1);
+    let fraction = position - below as f64;
+    at(below) + fraction * (at(above) - at(below))
+}
+
+/// [`interquartile_mean`] of all runs but those of each task in turn, in `O(n log n)`: the
+/// runs sorted once; without task `t` (its runs at the sorted places `r`), the `j`-th of the
+/// others is at place `j + i` with `i` the first index where `r[i] − i > j` (a binary search,
+/// `r[i] − i` never decreases); the window's sum is the range sum of a tree of pairwise sums
+/// less the runs of `t` inside it.
+fn iqm_without_each_task(scores: &Scores) -> Vec<f64> {
+    let mut runs: Vec<(f64, usize)> = scores
+        .tasks
+        .iter()
+        .enumerate()
+        .flat_map(|(t, runs)| runs.iter().map(move |&s| (s, t)))
+        .collect();
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let n = runs.len();
+    let tree = RangeSum::new(runs.iter().map(|r| r.0));
+    let mut places: Vec<Vec<usize>> = vec![Vec::new(); scores.tasks.len()];
+    for (place, &(_, t)) in runs.iter().enumerate() {
+        places[t].push(place);
+    }
+    places
+        .iter()
+        .map(|r| {
+            let left = n - r.len();
+            if left == 0 {
+                return f64::NAN;
+            }
+            let cut = left / 4;
+            let (first, last) = (cut, left - cut - 1);
+            // the place of the j-th run that is not one of r
+            let place = |j: usize| {
+                let (mut lo, mut hi) = (0, r.len());
+                while lo < hi {
+                    let mid = (lo + hi) / 2;
+                    if r[mid] - mid > j {
+                        hi = mid;
+                    } else {
+                        lo = mid + 1;
+                    }
+                }
+                j + lo
+            };
+            let (from, to) = (place(first), place(last));
+            let inside = &r[r.partition_point(|&p| p < from)..r.partition_point(|&p| p <= to)];
+            let own: f64 = inside.iter().map(|&p| runs[p].0).sum();
+            (tree.sum(from, to + 1) - own) / (last - first + 1) as f64
+        })
+        .collect()
+}
+
+/// Sums of ranges of a list in `O(log n)` each, as a tree of pairwise sums (so a range's sum
+/// has the rounding error of the values in it, not of a running total before it).
+struct RangeSum {
+    size: usize,
+    /// The tree, `1` its root, leaves from `size`.
+    nodes: Vec<f64>,
+}
+
+impl RangeSum {
+    fn new(values: impl ExactSizeIterator<Item = f64>) -> Self {
+        let size = values.len().next_power_of_two().max(1);
+        let mut nodes = vec![0.0; 2 * size];
+        for (i, v) in values.enumerate() {
+            nodes[size + i] = v;
+        }
+        for i in (1..size).rev() {
+            nodes[i] = nodes[2 * i] + nodes[2 * i + 1];
+        }
+        Self { size, nodes }
+    }
+
+    /// The sum of the values at `from..to`.
+    fn sum(&self, from: usize, to: usize) -> f64 {
+        let (mut lo, mut hi) = (from + self.size, to + self.size);
+        let (mut left, mut right) = (0.0, 0.0);
+        while lo < hi {
+            if lo % 2 == 1 {
+                left += self.nodes[lo];
+                lo += 1;
+            }
+            if hi % 2 == 1 {
+                hi -= 1;
+                right = self.nodes[hi] + right;
+            }
+            lo /= 2;
+            hi /= 2;
+        }
+        left + right
+    }
 }
 
 fn mean(values: &[f64]) -> f64 {
@@ -150,21 +317,20 @@ pub fn interquartile_mean(values: Vec<f64>) -> f64 {
 }
 
 /// `P(X > Y)` on one task: the share of pairs (x, y) of runs with `x > y`, ties counting
-/// one half (the Mann–Whitney U statistic over `n_x · n_y`).
+/// one half (the Mann–Whitney U statistic over `n_x · n_y`), counted in `O((n_x + n_y) log n_y)`
+/// with `y` sorted: each `x` wins against the `y` below it and ties the `y` equal to it.
 pub fn task_improvement(x: &[f64], y: &[f64]) -> f64 {
-    let mut wins = 0.0;
-    for &a in x {
-        for &b in y {
-            wins += if a > b {
-                1.0
-            } else if a == b {
-                0.5
-            } else {
-                0.0
-            };
-        }
-    }
-    wins / (x.len() * y.len()) as f64
+    let y = sorted(y.to_vec());
+    // twice the wins, a whole number (exact in u128)
+    let twice: u128 = x
+        .iter()
+        .map(|&a| {
+            let below = y.partition_point(|&b| b < a);
+            let equal = y[below..].partition_point(|&b| b <= a);
+            2 * below as u128 + equal as u128
+        })
+        .sum();
+    twice as f64 / 2.0 / (x.len() as f64 * y.len() as f64)
 }
 
 /// The probability of improvement of `x` over `y`: [`task_improvement`] averaged over the
@@ -239,20 +405,21 @@ impl StratifiedBootstrap {
         (quantile(&values, tail), quantile(&values, 1.0 - tail))
     }
 
-    /// `statistic` of `scores` with its interval: each resample draws every task's runs
+    /// `aggregate` of `scores` with its interval: each resample draws every task's runs
     /// with replacement.
-    pub fn estimate(&self, scores: &Scores, statistic: impl Fn(&Scores) -> f64) -> Estimate {
+    pub fn estimate(&self, scores: &Scores, aggregate: Aggregate) -> Estimate {
         let mut rng = StdRng::seed_from_u64(self.seed);
         let values = (0..self.reps)
-            .map(|_| statistic(&scores.resample(&mut rng)))
+            .map(|_| aggregate.of(&scores.resample(&mut rng)))
             .collect();
         let (lower, upper) = self.interval(values);
+        let without = (scores.tasks.len() >= 2).then(|| aggregate.without_each_task(scores));
         Estimate {
-            point: statistic(scores),
+            point: aggregate.of(scores),
             lower,
             upper,
             leave_one_task_out: leave_one_task_out(scores.tasks.len(), |t| {
-                statistic(&scores.without_task(t))
+                without.as_ref().map_or(f64::NAN, |w| w[t])
             }),
         }
     }
@@ -269,9 +436,18 @@ impl StratifiedBootstrap {
             point: probability_of_improvement(x, y),
             lower,
             upper,
-            leave_one_task_out: leave_one_task_out(x.tasks.len().min(y.tasks.len()), |t| {
-                probability_of_improvement(&x.without_task(t), &y.without_task(t))
-            }),
+            leave_one_task_out: {
+                let per_task: Vec<f64> = x
+                    .tasks
+                    .iter()
+                    .zip(&y.tasks)
+                    .map(|(x, y)| task_improvement(x, y))
+                    .collect();
+                let sums = PrefixSuffix::new(&per_task);
+                leave_one_task_out(per_task.len(), |t| {
+                    sums.without(t) / (per_task.len() - 1) as f64
+                })
+            },
         }
     }
 
@@ -379,6 +555,10 @@ pub struct Analysis {
 /// `f64` (the statistics add, subtract and square them).
 pub const MAX_SCORE: f64 = 1e150;
 
+/// The most algorithms a comparison may have: it estimates every ordered pair's probability
+/// of improvement, `a (a − 1)` estimates.
+pub const MAX_ALGORITHMS: usize = 100;
+
 /// Reads a score file: CSV with the header `algorithm,task,score` (in any column order; other
 /// columns are ignored) and one row per run. Tasks and algorithms keep their first-seen order.
 ///
@@ -388,6 +568,8 @@ pub const MAX_SCORE: f64 = 1e150;
 /// algorithm without runs on a task that another has (the statistics compare algorithms on the
 /// same tasks).
 pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
+    use apo_train::input::excerpt;
+    use std::collections::HashMap;
     let mut reader = csv::Reader::from_reader(text.as_bytes());
     let headers = reader.headers()?.clone();
     let column = |name: &str| {
@@ -398,13 +580,16 @@ pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
                 let found: Vec<&str> = headers.iter().collect();
                 anyhow::anyhow!(
                     "the score file has no `{name}` column: its header is `{}`; the columns needed are algorithm,task,score (in any order)",
-                    found.join(",")
+                    excerpt(&found.join(","))
                 )
             })
     };
     let (a, t, v) = (column("algorithm")?, column("task")?, column("score")?);
+    // tasks and algorithms in first-seen order, found by name in O(log n) (a hash map)
     let mut tasks: Vec<String> = Vec::new();
-    let mut runs: Vec<(String, BTreeMap<String, Vec<f64>>)> = Vec::new();
+    let mut task_index: HashMap<String, usize> = HashMap::new();
+    let mut runs: Vec<(String, Vec<Vec<f64>>)> = Vec::new();
+    let mut algorithm_index: HashMap<String, usize> = HashMap::new();
     for (i, record) in reader.records().enumerate() {
         let line = i + 2;
         let record = record.map_err(|e| anyhow::anyhow!("line {line}: {e}"))?;
@@ -416,24 +601,41 @@ pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
             .ok_or_else(|| {
                 anyhow::anyhow!(
                     "line {line}: the score `{}` is not a number in [-{MAX_SCORE:e}, {MAX_SCORE:e}]",
-                    field(v)
+                    excerpt(field(v))
                 )
             })?;
-        let (algorithm, task) = (field(a).to_string(), field(t).to_string());
+        let (algorithm, task) = (field(a), field(t));
         if algorithm.is_empty() || task.is_empty() {
             anyhow::bail!("line {line}: empty algorithm or task");
         }
-        if !tasks.contains(&task) {
-            tasks.push(task.clone());
-        }
-        let index = match runs.iter().position(|(l, _)| *l == algorithm) {
-            Some(i) => i,
+        let t = match task_index.get(task) {
+            Some(&t) => t,
             None => {
-                runs.push((algorithm, BTreeMap::new()));
+                tasks.push(task.to_string());
+                task_index.insert(task.to_string(), tasks.len() - 1);
+                tasks.len() - 1
+            }
+        };
+        let index = match algorithm_index.get(algorithm) {
+            Some(&i) => i,
+            None => {
+                if runs.len() == MAX_ALGORITHMS {
+                    anyhow::bail!(
+                        "line {line}: `{}` is an algorithm beyond the {MAX_ALGORITHMS} a comparison may have \
+                         (1..={MAX_ALGORITHMS}: every ordered pair is an estimate of its own)",
+                        excerpt(algorithm)
+                    );
+                }
+                runs.push((algorithm.to_string(), Vec::new()));
+                algorithm_index.insert(algorithm.to_string(), runs.len() - 1);
                 runs.len() - 1
             }
         };
-        runs[index].1.entry(task).or_default().push(score);
+        let by_task = &mut runs[index].1;
+        if by_task.len() <= t {
+            by_task.resize(t + 1, Vec::new());
+        }
+        by_task[t].push(score);
     }
     if runs.is_empty() {
         anyhow::bail!("the score file has no rows");
@@ -441,15 +643,15 @@ pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
     let algorithms = runs
         .into_iter()
         .map(|(label, mut by_task)| {
-            let scores = tasks
-                .iter()
-                .map(|task| {
-                    by_task.remove(task).ok_or_else(|| {
-                        anyhow::anyhow!("{label} has no run on the task {task}; every algorithm needs runs on every task")
-                    })
-                })
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            Ok((label, Scores { tasks: scores }))
+            by_task.resize(tasks.len(), Vec::new());
+            if let Some(t) = by_task.iter().position(Vec::is_empty) {
+                anyhow::bail!(
+                    "{} has no run on the task {}; every algorithm needs runs on every task",
+                    excerpt(&label),
+                    excerpt(&tasks[t])
+                );
+            }
+            Ok((label, Scores { tasks: by_task }))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     Ok(Comparison { tasks, algorithms })
@@ -515,7 +717,7 @@ pub fn analyze_with_progress(
             let estimates = Aggregate::ALL
                 .iter()
                 .map(|&a| {
-                    let estimate = bootstrap.estimate(scores, |s| a.of(s));
+                    let estimate = bootstrap.estimate(scores, a);
                     progress(reps);
                     (a.name(), estimate)
                 })
@@ -744,17 +946,13 @@ mod tests {
         assert!(close(p.point, 0.5));
         assert_eq!(p.leave_one_task_out, Some([0.25, 0.75]));
         // the mean of x's task means 1, without each task: 1/2, 3/2, 1
-        let m = b.estimate(&x, |s| Aggregate::Mean.of(s));
+        let m = b.estimate(&x, Aggregate::Mean);
         assert_eq!(m.leave_one_task_out, Some([0.5, 1.5]));
         // one task: nothing to leave out
         let one = Scores {
             tasks: vec![vec![1.0, 2.0]],
         };
-        assert_eq!(
-            b.estimate(&one, |s| Aggregate::Mean.of(s))
-                .leave_one_task_out,
-            None
-        );
+        assert_eq!(b.estimate(&one, Aggregate::Mean).leave_one_task_out, None);
         assert!(cell(&p).ends_with("(LOTO 0.250–0.750)"), "{}", cell(&p));
     }
 
@@ -775,16 +973,16 @@ mod tests {
             seed: 7,
         };
         for a in Aggregate::ALL {
-            let e = b.estimate(&s, |s| a.of(s));
+            let e = b.estimate(&s, a);
             assert!(e.lower <= e.point && e.point <= e.upper, "{a:?} {e:?}");
             assert!(e.lower < e.upper, "{a:?} {e:?}");
-            assert_eq!(e, b.estimate(&s, |s| a.of(s)), "same seed, same interval");
+            assert_eq!(e, b.estimate(&s, a), "same seed, same interval");
         }
         // a task whose runs all agree has no spread: only resampling the other moves the mean
         let fixed = Scores {
             tasks: vec![vec![2.0; 4]],
         };
-        let e = b.estimate(&fixed, |s| Aggregate::Mean.of(s));
+        let e = b.estimate(&fixed, Aggregate::Mean);
         assert_eq!((e.point, e.lower, e.upper), (2.0, 2.0, 2.0));
         // x beats y on every pair: probability 1 in every resample
         let x = Scores {
@@ -825,9 +1023,77 @@ mod tests {
                     })
                     .collect(),
             };
-            let e = b.estimate(&s, |s| Aggregate::Mean.of(s));
+            let e = b.estimate(&s, Aggregate::Mean);
             covered += usize::from(e.lower <= 2.0 && 2.0 <= e.upper);
         }
         assert!((175..=198).contains(&covered), "covered {covered} of 200");
+    }
+    /// The leave-one-task-out values in O(n log n) equal the statistic computed again on the
+    /// scores without each task (ties, uneven task sizes and a task of one run included).
+    #[test]
+    fn leave_one_task_out_values_equal_the_statistic_without_each_task() {
+        let mut rng = StdRng::seed_from_u64(7);
+        for case in 0..40 {
+            let tasks = 2 + case % 6;
+            let scores = Scores {
+                tasks: (0..tasks)
+                    .map(|_| {
+                        let runs = rng.random_range(1..9);
+                        (0..runs)
+                            .map(|_| f64::from(rng.random_range(-4i32..5)) * 0.5)
+                            .collect()
+                    })
+                    .collect(),
+            };
+            for a in Aggregate::ALL {
+                let fast = a.without_each_task(&scores);
+                for (t, &value) in fast.iter().enumerate() {
+                    let mut rest = scores.clone();
+                    rest.tasks.remove(t);
+                    let direct = a.of(&rest);
+                    assert!(
+                        (value - direct).abs() <= 1e-12 * direct.abs().max(1.0),
+                        "{} without task {t} of {:?}: {value} against {direct}",
+                        a.name(),
+                        scores.tasks
+                    );
+                }
+            }
+            let y = Scores {
+                tasks: scores.tasks.iter().rev().cloned().collect(),
+            };
+            for (x, y) in scores.tasks.iter().zip(&y.tasks) {
+                let mut wins = 0.0;
+                for &a in x {
+                    for &b in y {
+                        wins += if a > b {
+                            1.0
+                        } else if a == b {
+                            0.5
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+                assert_eq!(task_improvement(x, y), wins / (x.len() * y.len()) as f64);
+            }
+        }
+    }
+
+    /// A comparison holds at most MAX_ALGORITHMS algorithms, refused while the file is read.
+    #[test]
+    fn a_score_file_of_too_many_algorithms_is_refused_while_it_is_read() {
+        let mut text = String::from("algorithm,task,score\n");
+        for a in 0..=MAX_ALGORITHMS {
+            text += &format!("algo{a},A,1\n");
+        }
+        let err = format!("{:#}", read_scores(&text).unwrap_err());
+        assert!(
+            err.contains(&format!(
+                "line {}: `algo{MAX_ALGORITHMS}`",
+                MAX_ALGORITHMS + 2
+            )) && err.contains("1..=100"),
+            "{err}"
+        );
     }
 }

@@ -12,9 +12,15 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use crate::plot::{color, font, render_image as render, GREY};
 use crate::stats::{Aggregate, Analysis};
 
-/// The performance profiles of `analysis` into `out`; `title` names the metric and `x_label`
+/// The performance profiles of `analysis` into `out` (placed as `place` says); `title` names the metric and `x_label`
 /// the scores.
-pub fn profiles(analysis: &Analysis, title: &str, x_label: &str, out: &Path) -> anyhow::Result<()> {
+pub fn profiles(
+    analysis: &Analysis,
+    title: &str,
+    x_label: &str,
+    out: &Path,
+    place: apo_train::atomic::Place,
+) -> anyhow::Result<()> {
     fn draw<DB: DrawingBackend>(
         root: DrawingArea<DB, Shift>,
         analysis: &Analysis,
@@ -85,11 +91,18 @@ pub fn profiles(analysis: &Analysis, title: &str, x_label: &str, out: &Path) -> 
         (900, 600),
         &|a| draw(a, analysis, title, x_label),
         &|a| draw(a, analysis, title, x_label),
+        place,
     )
 }
 
-/// The aggregate intervals of `analysis` into `out`: one panel per [`Aggregate`].
-pub fn intervals(analysis: &Analysis, title: &str, out: &Path) -> anyhow::Result<()> {
+/// The aggregate intervals of `analysis` into `out` (placed as `place` says): one panel per
+/// [`Aggregate`].
+pub fn intervals(
+    analysis: &Analysis,
+    title: &str,
+    out: &Path,
+    place: apo_train::atomic::Place,
+) -> anyhow::Result<()> {
     fn draw<DB: DrawingBackend>(
         root: DrawingArea<DB, Shift>,
         analysis: &Analysis,
@@ -186,5 +199,6 @@ pub fn intervals(analysis: &Analysis, title: &str, out: &Path) -> anyhow::Result
         (1200, height.min(2000)),
         &|a| draw(a, analysis, title),
         &|a| draw(a, analysis, title),
+        place,
     )
 }

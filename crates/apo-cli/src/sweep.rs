@@ -131,13 +131,20 @@ const SWEEP_KEYS: [(&str, &str); 4] = [
 /// The most runs a sweep may have unless `--max-runs` raises it.
 pub const DEFAULT_MAX_RUNS: u64 = 10_000;
 
+/// The most `--max-runs` may allow: a run is a process and a directory, and the sweep holds
+/// every run's description at once, so the count is bounded before anything is allocated.
+pub const MAX_RUNS: u64 = 1_000_000;
+
 /// Parses `--seeds`: a list (`0,1,2`) or a range (`0..5`, end excluded) of at most
 /// `max` seeds, counted before anything is allocated; a seed listed twice is refused.
 ///
 /// # Errors
 /// Bad syntax, an empty or too long list, a seed above `i64::MAX`, or a repeated seed.
 pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
-    let bad = || format!("--seeds expects a list (0,1,2) or a range (0..5), got `{text}`");
+    let max = max.min(MAX_RUNS);
+    // the text as the errors quote it (an excerpt of a long one)
+    let shown = apo_train::input::excerpt(text);
+    let bad = || format!("--seeds expects a list (0,1,2) or a range (0..5), got `{shown}`");
     let seeds: Vec<u64> = match text.split_once("..") {
         Some((a, b)) => {
             let (a, b): (u64, u64) = (
@@ -146,20 +153,25 @@ pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
             );
             if b <= a {
                 bail!(
-                    "--seeds {text} is an empty range: its end is excluded, so it must be above its start \
+                    "--seeds {shown} is an empty range: its end is excluded, so it must be above its start \
                      (e.g. {a}..{} for the seed {a} alone)",
                     a.saturating_add(1)
                 );
             }
             let count = b - a;
-            if count > max {
+            if count > max.min(MAX_RUNS) {
                 bail!(
-                    "--seeds {text} is {count} seeds, more than the {max} runs a sweep may have \
+                    "--seeds {shown} is {count} seeds, more than the {max} runs a sweep may have \
                      (raise the limit with --max-runs)"
                 );
             }
             (a..b).collect()
         }
+        None if text.split(',').count() as u64 > max => bail!(
+            "--seeds {shown} lists {} seeds, more than the {max} runs a sweep may have \
+             (raise the limit with --max-runs, up to {MAX_RUNS})",
+            text.split(',').count()
+        ),
         None => text
             .split(',')
             .map(|s| s.trim().parse::<u64>())
@@ -171,13 +183,13 @@ pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
     }
     if let Some(s) = seeds.iter().find(|&&s| s > i64::MAX as u64) {
         bail!(
-            "--seeds {text}: seed {s} is out of the range 0..={}",
+            "--seeds {shown}: seed {s} is out of the range 0..={}",
             i64::MAX
         );
     }
     let mut seen = BTreeSet::new();
     if let Some(s) = seeds.iter().find(|s| !seen.insert(**s)) {
-        bail!("--seeds {text}: seed {s} is listed twice");
+        bail!("--seeds {shown}: seed {s} is listed twice");
     }
     Ok(seeds)
 }
@@ -379,6 +391,7 @@ pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<
         }
     }
     let count = count_runs(spec, &algos)?;
+    let max_runs = max_runs.min(MAX_RUNS);
     if count > max_runs {
         bail!(
             "the sweep has {count} runs ({} environments × {} algorithms × grid cells × {} seeds), more than \

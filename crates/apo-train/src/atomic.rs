@@ -7,8 +7,15 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Writes `bytes` to `path` atomically and durably: readers see the old or the new content,
-/// never a part, and the new content survives a power loss once this returns.
+/// never a part, and the new content survives a power loss once this returns. It replaces a
+/// plain file only ([`Place::ReplacePlainFile`]).
 pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    write_placed(path, bytes, Place::ReplacePlainFile)
+}
+
+/// [`write`], placed as `how` says: with [`Place::New`] nothing at `path` is ever replaced,
+/// not even what appears there while the bytes are written.
+pub fn write_placed(path: &Path, bytes: &[u8], how: Place) -> std::io::Result<()> {
     // apo replaces only plain files: a link (every link is the user's), a folder or a special
     // file (a pipe, socket or device: apo makes none) stays
     if let Some(kind) = not_plain(path) {
@@ -26,12 +33,141 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let written = file
         .write_all(bytes)
         .and_then(|()| file.sync_all())
-        .and_then(|()| std::fs::rename(&tmp, path));
+        .and_then(|()| place(&tmp, path, how));
     if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
         return Err(e);
     }
     sync_dir(dir)
+}
+
+/// How a finished file takes its place, decided at the moment it does (no window between a
+/// check and the rename in which something that appeared at the target would be replaced).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Place {
+    /// Only where nothing is: whatever is at the target then (a file, a link, anything) stays
+    /// and the placement fails. For the outputs a user names without `--force`.
+    New,
+    /// Over a plain file or nothing: a link, a folder or a special file at the target then
+    /// stays and the placement fails. For apo's own files and `--force`.
+    ReplacePlainFile,
+}
+
+/// Moves the finished temporary file `tmp` to `path` as `how` says, atomically: on Linux by
+/// `renameat2` (`RENAME_NOREPLACE`; for a replacement, `RENAME_EXCHANGE` and a look at what
+/// came out, swapped back unless it is a plain file), elsewhere, or on a file system without
+/// those, by a hard link (which never replaces) or a check and a rename. On an error `tmp` is
+/// left for the caller to remove.
+///
+/// # Errors
+/// `AlreadyExists` when something is at `path` that `how` does not replace (naming it), or
+/// the OS's error.
+pub fn place(tmp: &Path, path: &Path, how: Place) -> std::io::Result<()> {
+    let appeared = |what: &str| {
+        std::io::Error::new(
+            std::io::ErrorKind::AlreadyExists,
+            format!(
+                "{} {what}; nothing was replaced (apo replaces an existing file only with --force, and only a \
+                 plain file)",
+                path.display()
+            ),
+        )
+    };
+    match rename_no_replace(tmp, path) {
+        Ok(()) => return Ok(()),
+        Err(e) if e.kind() != std::io::ErrorKind::AlreadyExists => return Err(e),
+        Err(_) if how == Place::New => {
+            return Err(appeared("exists (it appeared while apo wrote it)"))
+        }
+        Err(_) => {}
+    }
+    // something is there: swap, and keep the swap only when a plain file came out
+    match exchange(tmp, path) {
+        Ok(()) => match not_plain(tmp) {
+            None => std::fs::remove_file(tmp),
+            Some(kind) => {
+                exchange(tmp, path)?;
+                Err(appeared(&format!("is {kind}")))
+            }
+        },
+        Err(e) if unsupported(&e) => match not_plain(path) {
+            None => std::fs::rename(tmp, path),
+            Some(kind) => Err(appeared(&format!("is {kind}"))),
+        },
+        Err(e) => Err(e),
+    }
+}
+
+/// Whether `e` says the file system (or the OS) does not offer an operation.
+fn unsupported(e: &std::io::Error) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        matches!(
+            e.raw_os_error(),
+            Some(libc::EINVAL | libc::ENOSYS | libc::EOPNOTSUPP)
+        )
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        e.kind() == std::io::ErrorKind::Unsupported
+    }
+}
+
+/// `rename(from, to)` that fails with `AlreadyExists` where anything is at `to`, at the moment
+/// of the rename.
+///
+/// # Errors
+/// `AlreadyExists`, or the OS's error.
+pub fn rename_no_replace(from: &Path, to: &Path) -> std::io::Result<()> {
+    #[cfg(target_os = "linux")]
+    {
+        match renameat2(from, to, libc::RENAME_NOREPLACE) {
+            Err(e) if unsupported(&e) => {}
+            done => return done,
+        }
+    }
+    // a hard link never replaces; then the temporary name goes
+    std::fs::hard_link(from, to)?;
+    std::fs::remove_file(from)
+}
+
+/// Swaps the entries `a` and `b` atomically (both must exist).
+fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
+    #[cfg(target_os = "linux")]
+    {
+        renameat2(a, b, libc::RENAME_EXCHANGE)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = (a, b);
+        Err(std::io::Error::from(std::io::ErrorKind::Unsupported))
+    }
+}
+
+#[cfg(target_os = "linux")]
+fn renameat2(from: &Path, to: &Path, flags: libc::c_uint) -> std::io::Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = |p: &Path| {
+        std::ffi::CString::new(p.as_os_str().as_bytes())
+            .map_err(|_| std::io::Error::from(std::io::ErrorKind::InvalidInput))
+    };
+    let (from, to) = (c(from)?, c(to)?);
+    // SAFETY: both are NUL-terminated strings that live through the call; AT_FDCWD makes
+    // relative paths relative to the working directory, as std's rename does
+    let done = unsafe {
+        libc::renameat2(
+            libc::AT_FDCWD,
+            from.as_ptr(),
+            libc::AT_FDCWD,
+            to.as_ptr(),
+            flags,
+        )
+    };
+    if done == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
 }
 
 /// What `path` is when something other than a plain file is there (`"a symbolic link"`, `"a
@@ -60,7 +196,8 @@ static TEMPS: AtomicU64 = AtomicU64::new(0);
 
 /// Creates a new temporary file for a file named `name` in `dir`: `.<name>.apo-<pid>-<n>.tmp`,
 /// a name no other process or call uses, opened with `create_new` so that no existing file
-/// (a user's, another apo's) is ever written over.
+/// (a user's, another apo's) is ever written over, and marked as apo's ([`MARK`]: the proof
+/// by which a later apo removes it if this process dies before it does).
 ///
 /// # Errors
 /// The OS error of the creation.
@@ -75,18 +212,97 @@ pub fn create_temp(dir: &Path, name: &str) -> std::io::Result<(PathBuf, std::fs:
     remove_dead_temps(dir, Some(name));
     loop {
         let n = TEMPS.fetch_add(1, Ordering::Relaxed);
-        let tmp = dir.join(format!(".{name}.apo-{}-{n}.tmp", std::process::id()));
+        let id = format!("{}-{n}", std::process::id());
+        let tmp = dir.join(format!(".{name}.apo-{id}.tmp"));
         match std::fs::OpenOptions::new()
             .write(true)
             .create_new(true)
             .open(&tmp)
         {
-            Ok(file) => return Ok((tmp, file)),
+            Ok(file) => {
+                mark(&file, &id);
+                return Ok((tmp, file));
+            }
             // left by an earlier process of the same id: take the next number
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
             Err(e) => return Err(e),
         }
     }
+}
+
+/// The extended attribute by which apo marks its temporary files, holding `<pid>-<n>` of the
+/// name: a name alone proves nothing (a user may name a file anything), so apo removes a
+/// temporary file of a process that is gone only when it carries the mark its name gives.
+/// On a file system without user extended attributes, nothing is marked and nothing of a
+/// process that is gone is removed: its temporary file stays, the user's to remove.
+pub const MARK: &str = "user.apo.temp";
+
+/// Marks the temporary file `file` as apo's, with `id` (`<pid>-<n>`); a file system without
+/// extended attributes leaves it unmarked.
+fn mark(file: &std::fs::File, id: &str) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let name = std::ffi::CString::new(MARK).unwrap_or_default();
+        // SAFETY: the fd is open for the call's length; name is NUL-terminated; the value is
+        // `id`'s bytes with their length
+        unsafe {
+            libc::fsetxattr(
+                file.as_raw_fd(),
+                name.as_ptr(),
+                id.as_ptr().cast(),
+                id.len(),
+                0,
+            );
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (file, id);
+}
+
+/// Whether the entry `entry` of `dir` is a temporary file apo made: of apo's form, a plain
+/// file (not followed), and marked ([`MARK`]) with the ids of its name.
+fn proven(dir: &Path, entry: &str) -> bool {
+    let Some(ids) = temp_ids(entry) else {
+        return false;
+    };
+    let path = dir.join(entry);
+    if !std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
+        return false;
+    }
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let (Ok(path), Ok(name)) = (
+            std::ffi::CString::new(path.as_os_str().as_bytes()),
+            std::ffi::CString::new(MARK),
+        ) else {
+            return false;
+        };
+        let mut value = [0u8; 64];
+        // SAFETY: both strings are NUL-terminated and live through the call; `value` is a
+        // buffer of the length given
+        let read = unsafe {
+            libc::lgetxattr(
+                path.as_ptr(),
+                name.as_ptr(),
+                value.as_mut_ptr().cast(),
+                value.len(),
+            )
+        };
+        usize::try_from(read).is_ok_and(|n| value[..n] == *ids.as_bytes())
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        false
+    }
+}
+
+/// The `<pid>-<n>` of a temporary file's name of apo's form (`.<name>.apo-<pid>-<n>.tmp`).
+fn temp_ids(entry: &str) -> Option<&str> {
+    let inner = entry.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (_, ids) = inner.rsplit_once(".apo-")?;
+    Some(ids)
 }
 
 /// The process id in the name of a temporary file apo made (`.<name>.apo-<pid>-<n>.tmp`).
@@ -113,15 +329,16 @@ fn gone(pid: i32) -> bool {
     }
 }
 
-/// Whether `entry` is a temporary file of apo's form whose process is still running (one
-/// being written at this moment).
-pub fn is_live_temp(entry: &str) -> bool {
-    temp_pid(entry).is_some_and(|pid| !gone(pid))
+/// Whether the entry `entry` of `dir` is a temporary file apo made ([`MARK`]) whose process
+/// is still running (one being written at this moment).
+pub fn is_live_temp(dir: &Path, entry: &str) -> bool {
+    temp_pid(entry).is_some_and(|pid| !gone(pid)) && proven(dir, entry)
 }
 
-/// Removes from `dir` the temporary files of apo's form whose process is gone (one stopped by a
-/// second signal or killed mid-write): of the file `name`, or of any file with `None`. A
-/// running apo's temporary files, and every other file, stay.
+/// Removes from `dir` the temporary files apo made ([`MARK`]) whose process is gone (one
+/// stopped by a second signal or killed mid-write): of the file `name`, or of any file with
+/// `None`. A running apo's temporary files, a file of the same name without apo's mark, and
+/// every other file, stay.
 pub fn remove_dead_temps(dir: &Path, name: Option<&str>) {
     let Ok(entries) = crate::removal::entry_names(dir) else {
         return;
@@ -131,6 +348,7 @@ pub fn remove_dead_temps(dir: &Path, name: Option<&str>) {
         .into_iter()
         .filter(|e| name.is_none_or(|n| is_temp_of(e, n)))
         .filter(|e| temp_pid(e).is_some_and(|pid| pid != me && gone(pid)))
+        .filter(|e| proven(dir, e))
         .collect();
     let _ = crate::removal::remove_created(dir, &dead, false);
 }
@@ -151,14 +369,15 @@ pub fn is_temp_of(entry: &str, name: &str) -> bool {
     temp_target(entry) == Some(name)
 }
 
-/// The temporary files apo made for the files `names` in `dir` ([`is_temp_of`]).
+/// The temporary files apo made for the files `names` in `dir`: of apo's form
+/// ([`is_temp_of`]) and marked as apo's ([`MARK`]).
 pub fn temps_of(dir: &Path, names: &[String]) -> Vec<String> {
     let Ok(entries) = crate::removal::entry_names(dir) else {
         return Vec::new();
     };
     entries
         .into_iter()
-        .filter(|e| names.iter().any(|n| is_temp_of(e, n)))
+        .filter(|e| names.iter().any(|n| is_temp_of(e, n)) && proven(dir, e))
         .collect()
 }
 
@@ -225,33 +444,122 @@ mod tests {
         );
     }
 
+    /// Rule: apo removes only the temporary files it can prove it made: of its form, of a
+    /// process that is gone, and carrying its mark with the ids of the name. A user's file of
+    /// the same name (unmarked, or marked with other ids) stays.
     #[test]
-    fn only_the_temporary_files_of_a_process_that_is_gone_are_removed() {
+    fn only_the_marked_temporary_files_of_a_process_that_is_gone_are_removed() {
         let tmp = tempfile::tempdir().expect("tempdir");
         // a process that has ended and been reaped
         let mut child = std::process::Command::new("true").spawn().expect("true");
         let dead = child.id();
         child.wait().expect("reap");
         let me = std::process::id();
-        for name in [
+        let make = |name: String, marked: Option<String>| {
+            let file = std::fs::File::create(tmp.path().join(&name)).expect("create");
+            if let Some(id) = marked {
+                mark(&file, &id);
+            }
+            name
+        };
+        let apos = make(
             format!(".x.csv.apo-{dead}-0.tmp"),
-            format!(".x.csv.apo-{me}-0.tmp"),
-            ".x.csv.tmp".to_string(),
+            Some(format!("{dead}-0")),
+        );
+        let live = make(format!(".x.csv.apo-{me}-0.tmp"), Some(format!("{me}-0")));
+        let users = make(format!(".x.csv.apo-{dead}-1.tmp"), None);
+        let copied = make(
+            format!(".x.csv.apo-{dead}-2.tmp"),
+            Some(format!("{dead}-0")),
+        );
+        let other = make(
             format!(".y.csv.apo-{dead}-0.tmp"),
-        ] {
-            std::fs::write(tmp.path().join(name), "").expect("write");
-        }
+            Some(format!("{dead}-0")),
+        );
+        let plain = make(".x.csv.tmp".to_string(), None);
+        assert!(proven(tmp.path(), &apos) && !proven(tmp.path(), &users));
         remove_dead_temps(tmp.path(), Some("x.csv"));
         let left = crate::removal::entry_names(tmp.path()).expect("ls");
-        assert_eq!(
-            left,
-            [
-                ".x.csv.apo-".to_string() + &me.to_string() + "-0.tmp",
-                ".x.csv.tmp".to_string(),
-                format!(".y.csv.apo-{dead}-0.tmp"),
-            ]
-        );
+        let mut kept = vec![
+            live.clone(),
+            users.clone(),
+            copied.clone(),
+            other.clone(),
+            plain,
+        ];
+        kept.sort();
+        assert_eq!(left, kept, "only {apos} goes");
+        assert!(is_live_temp(tmp.path(), &live) && !is_live_temp(tmp.path(), &users));
+        assert_eq!(temps_of(tmp.path(), &["x.csv".to_string()]), [live]);
         remove_dead_temps(tmp.path(), None);
-        assert!(!tmp.path().join(format!(".y.csv.apo-{dead}-0.tmp")).exists());
+        assert!(!tmp.path().join(&other).exists());
+        assert!(tmp.path().join(&users).exists() && tmp.path().join(&copied).exists());
+        // the temporary file of a write is marked while it exists, and the write leaves none
+        let (made, _) = create_temp(tmp.path(), "z.csv").expect("temp");
+        let name = made
+            .file_name()
+            .expect("name")
+            .to_string_lossy()
+            .into_owned();
+        assert!(proven(tmp.path(), &name), "{name} carries apo's mark");
+    }
+
+    /// Rule: a placement never replaces what appeared after the check: `Place::New` keeps
+    /// anything at the target, `Place::ReplacePlainFile` anything but a plain file (a link, to
+    /// a file or to nothing, a folder), and either way the new bytes stay in the temporary
+    /// file for the caller to remove.
+    #[test]
+    fn a_placement_replaces_nothing_it_may_not() {
+        let tmp = tempfile::tempdir().expect("tempdir");
+        let target = tmp.path().join("out.gif");
+        let temp = |bytes: &[u8]| {
+            let (path, mut file) = create_temp(tmp.path(), "out.gif").expect("temp");
+            file.write_all(bytes).expect("write");
+            path
+        };
+        // nothing there: either way places it
+        let t = temp(b"one");
+        place(&t, &target, Place::New).expect("a new file");
+        assert_eq!(std::fs::read(&target).expect("read"), b"one");
+        assert!(!t.exists());
+        // a file there: New keeps it, ReplacePlainFile replaces it
+        let t = temp(b"two");
+        let err = place(&t, &target, Place::New).unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::AlreadyExists, "{err}");
+        assert!(
+            err.to_string().contains("appeared while apo wrote it"),
+            "{err}"
+        );
+        assert_eq!(std::fs::read(&target).expect("read"), b"one");
+        assert_eq!(std::fs::read(&t).expect("the new bytes stay"), b"two");
+        place(&t, &target, Place::ReplacePlainFile).expect("replaces a plain file");
+        assert_eq!(std::fs::read(&target).expect("read"), b"two");
+        assert!(!t.exists());
+        // a link (to a file of the user's, or to nothing) or a folder: kept by both
+        let theirs = tmp.path().join("theirs.txt");
+        std::fs::write(&theirs, b"theirs").expect("write");
+        let nowhere = tmp.path().join("nowhere");
+        for what in ["a link to a file", "a dangling link", "a folder"] {
+            let at = tmp.path().join(what.replace(' ', "-"));
+            match what {
+                "a link to a file" => std::os::unix::fs::symlink(&theirs, &at).expect("link"),
+                "a dangling link" => std::os::unix::fs::symlink(&nowhere, &at).expect("link"),
+                _ => std::fs::create_dir(&at).expect("mkdir"),
+            }
+            for how in [Place::New, Place::ReplacePlainFile] {
+                let t = temp(b"new");
+                let err = place(&t, &at, how).unwrap_err();
+                assert_eq!(
+                    err.kind(),
+                    std::io::ErrorKind::AlreadyExists,
+                    "{what}: {err}"
+                );
+                assert!(not_plain(&at).is_some(), "{what} is still there, {how:?}");
+                assert_eq!(std::fs::read(&t).expect("bytes"), b"new");
+                std::fs::remove_file(&t).expect("rm");
+            }
+        }
+        assert_eq!(std::fs::read(&theirs).expect("read"), b"theirs");
+        assert!(!nowhere.exists());
     }
 }

@@ -14,9 +14,18 @@ use crate::ProgressRow;
 pub use crate::{EpisodeRecord, Phase};
 use anyhow::Context;
 
-/// The file's header and a reader of its records.
+/// Every column of apo's episode file, in its order; all but `success` are required.
+pub const COLUMNS: [&str; 9] = [
+    "epoch", "phase", "env", "seed", "nth", "return", "length", "unstable", "success",
+];
+
+/// The file's header, checked as every reader checks it ([`crate::input::check_header`]),
+/// and a reader of its records.
 fn open(path: &Path) -> anyhow::Result<(csv::StringRecord, crate::input::CsvReader)> {
-    crate::input::open_csv(path, "episode file")
+    const WHAT: &str = "episode file";
+    let (headers, reader) = crate::input::open_csv(path, WHAT)?;
+    crate::input::check_header(path, WHAT, &headers, &COLUMNS, &COLUMNS[..8])?;
+    Ok((headers, reader))
 }
 
 /// Reads an `episodes.csv` whole: every row must parse.
@@ -228,6 +237,8 @@ mod tests {
         log.append(&epoch1).expect("write");
         log.append(&epoch2).expect("write");
         let whole = std::fs::read(&path).expect("read");
+        // the header the readers check is the one the log writes
+        assert!(whole.starts_with(format!("{}\n", COLUMNS.join(",")).as_bytes()));
         assert_eq!(
             read(&path).expect("records"),
             [&epoch1[..], &epoch2[..]].concat()
@@ -278,11 +289,26 @@ mod tests {
             recompute_rows(&mut rows, other.path(), 7.0).expect("none"),
             0
         );
-        // a record that does not parse is named
+        // a header without apo's columns is refused by the column, by resume as by the readers
         std::fs::write(&path, "epoch,phase\n1,train\n").expect("write");
         let err = format!("{:#}", EpisodeLog::resume(&path, 1).unwrap_err());
         assert!(
-            err.contains("line 2") && err.contains("episodes.csv"),
+            err.contains("has no `env` column") && err.contains("episodes.csv"),
+            "{err}"
+        );
+        assert_eq!(
+            format!("{:#}", read_lenient(&path).unwrap_err()),
+            format!("{:#}", read(&path).unwrap_err())
+        );
+        // a record that does not parse is named by its line
+        std::fs::write(
+            &path,
+            format!("{}\n1,train,0,7,0,x,4,false,\n", COLUMNS.join(",")),
+        )
+        .expect("write");
+        let err = format!("{:#}", EpisodeLog::resume(&path, 1).unwrap_err());
+        assert!(
+            err.contains("line 2") && err.contains("episodes.csv") && err.contains("`return`"),
             "{err}"
         );
     }

@@ -257,6 +257,74 @@ pub fn physical_memory() -> u64 {
     read().unwrap_or(MEMORY_WITHOUT_PROC)
 }
 
+/// The memory this process may still take, in bytes, and what sets it: the least of this
+/// machine's memory ([`physical_memory`]), its control group's limit (`memory.max`, cgroup v2)
+/// and, less what the process already maps, its own limits (`ulimit -v`, `RLIMIT_AS`;
+/// `ulimit -d`, `RLIMIT_DATA`), which the kernel enforces by failing an allocation (Rust
+/// aborts then) rather than by using swap.
+pub fn memory_limit() -> (u64, String) {
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    let mut limit = (
+        physical_memory(),
+        format!("this machine's {:.1} GiB", gib(physical_memory())),
+    );
+    let mut consider = |bytes: u64, what: String| {
+        if bytes < limit.0 {
+            limit = (bytes, what);
+        }
+    };
+    if let Some(max) = cgroup_memory_max() {
+        consider(
+            max,
+            format!(
+                "its control group's limit of {:.1} GiB (memory.max)",
+                gib(max)
+            ),
+        );
+    }
+    // statm: the sizes in pages of the whole mapping (field 1) and of the data and stack (6)
+    let statm = std::fs::read_to_string("/proc/self/statm").unwrap_or_default();
+    let pages: Vec<u64> = statm
+        .split_whitespace()
+        .map(|f| f.parse().unwrap_or(0))
+        .collect();
+    // SAFETY: sysconf has no preconditions
+    let page = u64::try_from(unsafe { libc::sysconf(libc::_SC_PAGESIZE) }).unwrap_or(4096);
+    let used = |field: usize| pages.get(field).copied().unwrap_or(0).saturating_mul(page);
+    for (resource, flag, field) in [
+        (libc::RLIMIT_AS, "ulimit -v", 0),
+        (libc::RLIMIT_DATA, "ulimit -d", 5),
+    ] {
+        let mut rlimit = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        // SAFETY: getrlimit writes the limit into the struct it is given, which lives here
+        if unsafe { libc::getrlimit(resource, &mut rlimit) } == 0
+            && rlimit.rlim_cur != libc::RLIM_INFINITY
+        {
+            let cap = rlimit.rlim_cur;
+            consider(
+                cap.saturating_sub(used(field)),
+                format!(
+                    "the {:.1} GiB this process has left of its limit of {:.1} GiB (`{flag}`)",
+                    gib(cap.saturating_sub(used(field))),
+                    gib(cap)
+                ),
+            );
+        }
+    }
+    limit
+}
+
+/// The cgroup v2 memory limit of this process (`memory.max` of its group), when one is set.
+fn cgroup_memory_max() -> Option<u64> {
+    let groups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let path = groups.lines().find_map(|l| l.strip_prefix("0::"))?;
+    let max = std::fs::read_to_string(format!("/sys/fs/cgroup{path}/memory.max")).ok()?;
+    max.trim().parse().ok()
+}
+
 /// This process's resident memory in bytes (the second field of `/proc/self/statm`).
 pub fn resident_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/self/statm").ok()?;
@@ -266,17 +334,88 @@ pub fn resident_memory() -> Option<u64> {
     Some(pages * u64::try_from(page).ok()?)
 }
 
-/// Checks that `bytes` fit in this machine's memory; `what` names the options that size it.
+/// Checks that `bytes` fit in the memory this process may take ([`memory_limit`]); `what`
+/// names the options that size it.
 ///
 /// # Errors
-/// Naming `what`, the estimate and the machine's memory.
+/// Naming `what`, the estimate and the limit.
 pub fn check_fits(bytes: f64, what: &str) -> anyhow::Result<()> {
-    let have = physical_memory();
+    let (have, limit) = memory_limit();
     if bytes > have as f64 {
         bail!(
-            "{what} would need about {:.1} GiB of memory, more than this machine's {:.1} GiB; lower them",
+            "{what} would need about {:.1} GiB of memory, more than {limit}; lower them",
             bytes / (1u64 << 30) as f64,
-            have as f64 / (1u64 << 30) as f64
+        );
+    }
+    Ok(())
+}
+
+/// The characters of found text an error quotes ([`excerpt`]).
+pub const EXCERPT_CHARS: usize = 60;
+
+/// `text` as an error quotes it: whole when short, else its first [`EXCERPT_CHARS`]
+/// characters, `…` and its length (a header of 300 MB is named, not echoed).
+pub fn excerpt(text: &str) -> String {
+    clip(text, EXCERPT_CHARS)
+}
+
+/// `text` cut after `chars` characters, with `…` and its length in bytes when it was longer.
+pub fn clip(text: &str, chars: usize) -> String {
+    match text.char_indices().nth(chars) {
+        None => text.to_string(),
+        Some((cut, _)) => format!("{}… ({} bytes)", &text[..cut], text.len()),
+    }
+}
+
+/// Checks the header of the record file at `path` (a `what`): every column is one of `known`,
+/// none is repeated and every one of `required` is there. Every reader of the file checks it,
+/// the one that resumes a run included, so that a header a reader refuses is never read over.
+///
+/// # Errors
+/// Naming the file, the column (by position and name, in an [`excerpt`]) and the columns the
+/// file takes.
+pub fn check_header(
+    path: &Path,
+    what: &str,
+    headers: &csv::StringRecord,
+    known: &[&str],
+    required: &[&str],
+) -> anyhow::Result<()> {
+    let takes = || {
+        format!(
+            "apo's {what} has the columns {} (the first {} required)",
+            known.join(","),
+            required.len()
+        )
+    };
+    let mut seen = std::collections::BTreeSet::new();
+    for (i, column) in headers.iter().enumerate() {
+        if !known.contains(&column) {
+            bail!(
+                "{}: column {} of the header, `{}`, is not a column of apo's {what}; {}",
+                path.display(),
+                i + 1,
+                excerpt(column),
+                takes()
+            );
+        }
+        if !seen.insert(column) {
+            bail!(
+                "{}: the column `{column}` is in the header twice (columns {} and {})",
+                path.display(),
+                headers
+                    .iter()
+                    .position(|h| h == column)
+                    .map_or(0, |p| p + 1),
+                i + 1
+            );
+        }
+    }
+    if let Some(missing) = required.iter().find(|c| !seen.contains(**c)) {
+        bail!(
+            "{} is not apo's {what}: it has no `{missing}` column; {}",
+            path.display(),
+            takes()
         );
     }
     Ok(())
@@ -326,7 +465,7 @@ pub fn csv_record<T: serde::de::DeserializeOwned>(
         let value: String = record.get(field).unwrap_or("").chars().take(40).collect();
         format!(
             "column `{}` = `{value}`: {}{takes}",
-            headers.get(field).unwrap_or("?"),
+            excerpt(headers.get(field).unwrap_or("?")),
             err.kind()
         )
     })

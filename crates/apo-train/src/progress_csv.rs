@@ -1,7 +1,10 @@
 //! `progress.csv`: one [`ProgressRow`] per epoch.
 //!
-//! Two readers, one rule each. Training ([`read`]) takes the file whole or not at all: a row
-//! that does not parse is an error, since resuming continues the record. The readers of
+//! One reader, two uses. Every use checks the header the same way (each column one of apo's,
+//! none twice, the first four there) and parses every row the same way. Training ([`read`])
+//! takes the file whole or not at all: a row the readers of finished runs would leave out for
+//! what it holds (one that does not parse, repeats or goes back on an epoch) is an error, since
+//! resuming continues the record. The readers of
 //! finished runs (`summary`, `report`, `plot`, `sweep`) use [`read_rows`]: a row that does not
 //! parse, repeats or goes back on an epoch, or holds a non-finite return statistic is left out
 //! and counted, and a warning names the file and the rows, so that one bad cell never turns
@@ -43,26 +46,45 @@ pub fn gaps(epochs: impl IntoIterator<Item = usize>) -> Vec<(usize, usize)> {
     missing
 }
 
-/// The file's header and a reader of its records.
-fn open(path: &Path) -> anyhow::Result<(csv::StringRecord, crate::input::CsvReader)> {
-    crate::input::open_csv(path, "progress file")
+/// Every column of apo's progress file, in the order [`write`] gives them.
+pub fn columns() -> Vec<String> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    // serializing a row writes the header first
+    let bytes = match writer.serialize(ProgressRow::default()) {
+        Ok(()) => writer.into_inner().unwrap_or_default(),
+        Err(_) => Vec::new(),
+    };
+    let text = String::from_utf8_lossy(&bytes);
+    text.lines()
+        .next()
+        .unwrap_or_default()
+        .split(',')
+        .map(str::to_string)
+        .collect()
 }
 
-/// Reads a `progress.csv` whole: every row must parse.
+/// The file's header, checked ([`crate::input::check_header`]), and a reader of its records.
+fn open(path: &Path) -> anyhow::Result<(csv::StringRecord, crate::input::CsvReader)> {
+    const WHAT: &str = "progress file";
+    let (headers, reader) = crate::input::open_csv(path, WHAT)?;
+    let known = columns();
+    let known: Vec<&str> = known.iter().map(String::as_str).collect();
+    crate::input::check_header(path, WHAT, &headers, &known, &REQUIRED_COLUMNS)?;
+    Ok((headers, reader))
+}
+
+/// Reads a `progress.csv` whole, as a resumed run continues it: the rows of [`read_lenient`]
+/// (non-finite values kept), and an error where it would leave a row out.
 ///
 /// # Errors
-/// A file that cannot be read, or a row that does not parse, naming the file, the line, the
-/// column and the value.
+/// A file that cannot be read, a header the readers refuse, or a row that does not parse or
+/// repeats or goes back on an epoch, naming the file, the line, the column and the value.
 pub fn read(path: &Path) -> anyhow::Result<Vec<ProgressRow>> {
-    let (headers, mut reader) = open(path)?;
-    reader
-        .records()
-        .enumerate()
-        .map(|(i, record)| {
-            parse_row(record, &headers)
-                .map_err(|why| anyhow::anyhow!("{}: line {}: {why}", path.display(), i + 2))
-        })
-        .collect()
+    let progress = read_lenient(path, true)?;
+    if let Some(first) = progress.left_out.first() {
+        anyhow::bail!("{}: {first}", path.display());
+    }
+    Ok(progress.rows)
 }
 
 /// One record as a row, or why not in the file's terms: the column, its value and what the
@@ -108,20 +130,6 @@ fn non_finite(row: &ProgressRow) -> Option<(&'static str, f64)> {
 /// A file that cannot be read, or one of which no row parses (not a progress file).
 pub fn read_lenient(path: &Path, keep_non_finite: bool) -> anyhow::Result<Progress> {
     let (headers, mut reader) = open(path)?;
-    if let Some(missing) = REQUIRED_COLUMNS
-        .iter()
-        .find(|c| !headers.iter().any(|h| h == **c))
-    {
-        let shown: Vec<&str> = headers.iter().take(12).collect();
-        anyhow::bail!(
-            "{} is not a progress file of apo: it has no `{missing}` column; its header is `{}{}` \
-             (apo's starts with {})",
-            path.display(),
-            shown.join(","),
-            if headers.len() > 12 { ",…" } else { "" },
-            REQUIRED_COLUMNS.join(",")
-        );
-    }
     let mut progress = Progress::default();
     let mut first_error = None;
     for (i, record) in reader.records().enumerate() {
@@ -318,6 +326,70 @@ mod tests {
                 && err.contains("line 2: column `ep_ret_mean` = `x`")
                 && err.contains("it takes a number"),
             "{err}"
+        );
+    }
+    /// Rule: one reader. A header a reader of finished runs refuses (a column that is not
+    /// apo's, one given twice, a required one missing), resume refuses with the same words; and
+    /// a row a reader leaves out (a repeated epoch), resume refuses, naming its line.
+    #[test]
+    fn what_a_reader_refuses_resume_refuses() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("progress.csv");
+        let rows: Vec<ProgressRow> = (1..=3)
+            .map(|epoch| ProgressRow {
+                epoch,
+                ep_ret_mean: Some(epoch as f64),
+                ..ProgressRow::default()
+            })
+            .collect();
+        write(&path, &rows).expect("write");
+        let good = std::fs::read_to_string(&path).expect("read");
+        let header = good.lines().next().expect("header").to_string();
+        assert_eq!(header.split(',').collect::<Vec<_>>(), columns());
+        let long = "y".repeat(100_000);
+        for (edited, says) in [
+            (
+                header.replacen("ep_ret_mean", "ep_ret_mea", 1),
+                "column 4 of the header, `ep_ret_mea`, is not a column of apo's progress file",
+            ),
+            (
+                header.replacen("ep_ret_min", "ep_ret_mean", 1),
+                "the column `ep_ret_mean` is in the header twice (columns 4 and 5)",
+            ),
+            (
+                header.replacen("ep_ret_min", &long, 1),
+                "column 5 of the header, `yyyy",
+            ),
+        ] {
+            std::fs::write(&path, good.replacen(&header, &edited, 1)).expect("write");
+            let lenient = format!("{:#}", read_lenient(&path, true).unwrap_err());
+            let whole = format!("{:#}", read(&path).unwrap_err());
+            assert!(lenient.contains(says), "{lenient}");
+            assert_eq!(lenient, whole);
+            assert!(
+                whole.len() < 2_000,
+                "the error quotes an excerpt: {} bytes",
+                whole.len()
+            );
+        }
+        let without: Vec<&str> = header.split(',').filter(|c| *c != "episodes").collect();
+        let mut text = without.join(",") + "\n";
+        for line in good.lines().skip(1) {
+            let mut cells: Vec<&str> = line.split(',').collect();
+            cells.remove(2);
+            text += &(cells.join(",") + "\n");
+        }
+        std::fs::write(&path, text).expect("write");
+        let whole = format!("{:#}", read(&path).unwrap_err());
+        assert!(whole.contains("has no `episodes` column"), "{whole}");
+        let mut lines: Vec<&str> = good.lines().collect();
+        lines.insert(3, lines[2]);
+        std::fs::write(&path, lines.join("\n") + "\n").expect("write");
+        assert_eq!(read_lenient(&path, true).expect("rows").rows.len(), 3);
+        let whole = format!("{:#}", read(&path).unwrap_err());
+        assert!(
+            whole.contains("line 4: epoch 2 after epoch 2 (repeated or out of order)"),
+            "{whole}"
         );
     }
 }

@@ -295,7 +295,8 @@ where
             video_policy,
         };
         let to_write = (epochs.is_some() && writer).then(|| config.to_toml());
-        let run = Self::open(config, dir, start, true, None, lock)?;
+        let mut run = Self::open(config, dir, start, true, None, lock)?;
+        run.remake_kept()?;
         if let Some(text) = to_write {
             // the new target is part of the run: a later plain resume continues to it. Written
             // only now that the checkpoint loaded and accepted it: a refused resume writes nothing
@@ -669,6 +670,25 @@ where
     /// A failed write (the previous checkpoint stays complete).
     pub fn checkpoint(&mut self) -> anyhow::Result<()> {
         self.save(false)
+    }
+
+    /// Makes the kept checkpoint (`checkpoints/epoch-<N>`) of the epoch the run resumes at
+    /// when the schedule keeps one and it is missing: a stop between that epoch's two writes
+    /// (`latest`, then the kept copy) leaves only `latest`, whose state the kept one holds.
+    fn remake_kept(&mut self) -> anyhow::Result<()> {
+        let epoch = self.trainer.state().epoch;
+        let keep = self
+            .trainer
+            .checkpoint_due(false)
+            .is_some_and(|due| due.keep);
+        if self.files.is_some()
+            && epoch > 0
+            && keep
+            && !checkpoint::kept_epochs(&self.dir).contains(&epoch)
+        {
+            self.save(true)?;
+        }
+        Ok(())
     }
 
     fn save(&mut self, keep: bool) -> anyhow::Result<()> {

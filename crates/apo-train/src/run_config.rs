@@ -324,7 +324,7 @@ impl RunConfig {
     }
 
     /// Checks that a run of this configuration on an environment with `observation_dim`
-    /// observations and `action` fits in this machine's memory ([`memory_estimate`]), before
+    /// observations and `action` fits in the memory this process may take ([`memory_estimate`], [`crate::input::memory_limit`]), before
     /// anything is allocated or created; the error names the keys that size it.
     pub fn check_memory(
         &self,
@@ -332,15 +332,17 @@ impl RunConfig {
         action: ActionKind,
     ) -> Result<(), apo_core::ConfigError> {
         let need = memory_estimate(self, observation_dim, action, self.env_bytes());
-        let have = crate::input::physical_memory();
+        let (have, limit) = crate::input::memory_limit();
         if need > have as f64 {
             return Err(apo_core::ConfigError {
                 field: "steps_per_epoch, num_envs, hidden".into(),
-                value: format!("{}, {}, {:?}", self.train.steps_per_epoch, self.train.num_envs, self.train.hidden),
+                value: format!(
+                    "{}, {}, {:?}",
+                    self.train.steps_per_epoch, self.train.num_envs, self.train.hidden
+                ),
                 rule: format!(
-                    "the run would need about {:.1} GiB of memory, more than this machine's {:.1} GiB; lower them",
+                    "the run would need about {:.1} GiB of memory, more than {limit}; lower them",
                     need / GIB,
-                    have as f64 / GIB
                 ),
             });
         }

@@ -168,15 +168,41 @@ pub fn own_videos(run: &Path) -> anyhow::Result<PathBuf> {
 /// Before apo writes the files `names` into the output folder `dir` (chosen by the user, named
 /// by apo: `report.md`, …), checks that none of them exists unless an earlier apo wrote it
 /// (listed in `dir/marker`), then lists them there: apo overwrites its own outputs, never a
-/// user's file of the same name.
+/// user's file of the same name. Returns how each is to take its place ([`OutputPlaces`]): a
+/// name that is there now (apo's earlier output) replaces a plain file, any other only
+/// nothing — a file that appears there while apo works stays.
 ///
 /// # Errors
 /// Naming a file apo would overwrite but did not write, or when the marker cannot be written.
-pub fn claim_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Result<()> {
+pub fn claim_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Result<OutputPlaces> {
     check_outputs(dir, marker, names)?;
+    let present = names
+        .iter()
+        .filter(|n| std::fs::symlink_metadata(dir.join(n)).is_ok())
+        .cloned()
+        .collect();
     let mut listed = created_entries_in(dir, marker)?.unwrap_or_default();
     listed.extend(names.iter().cloned());
-    write_marker_in(dir, marker, &listed)
+    write_marker_in(dir, marker, &listed)?;
+    Ok(OutputPlaces { present })
+}
+
+/// How the outputs [`claim_outputs`] claimed take their places.
+#[derive(Debug, Clone, Default)]
+pub struct OutputPlaces {
+    /// The names apo wrote before and finds there: replaced as plain files.
+    present: BTreeSet<String>,
+}
+
+impl OutputPlaces {
+    /// How the output `name` takes its place.
+    pub fn of(&self, name: &str) -> crate::atomic::Place {
+        if self.present.contains(name) {
+            crate::atomic::Place::ReplacePlainFile
+        } else {
+            crate::atomic::Place::New
+        }
+    }
 }
 
 /// The check of [`claim_outputs`] alone (nothing written), for a command to fail before its work.
@@ -520,6 +546,30 @@ impl RunLock {
     }
 }
 
+/// What holds the lock of the run directory `dir` when an apo process holds it (the lock
+/// file's text, `pid <n>`, or an empty one); `None` when no process holds it, or it has no
+/// lock file. The probe takes a shared lock for an instant and never creates the file nor
+/// follows a link.
+pub fn lock_holder(dir: &Path) -> Option<String> {
+    let path = dir.join(LOCK);
+    if !std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
+        return None;
+    }
+    let mut file = open_own(OpenOptions::new().read(true), &path).ok()?;
+    match file.try_lock_shared() {
+        Ok(()) => {
+            let _ = file.unlock();
+            None
+        }
+        Err(TryLockError::WouldBlock) => {
+            let mut holder = String::new();
+            let _ = (&mut file).take(64).read_to_string(&mut holder);
+            Some(crate::input::excerpt(holder.trim()))
+        }
+        Err(TryLockError::Error(_)) => None,
+    }
+}
+
 /// A run directory prepared for a new run, locked.
 #[derive(Debug)]
 pub struct NewRunDir {
@@ -585,7 +635,7 @@ impl NewRunDir {
                 return marked.as_ref().is_some_and(|m| m.contains(LOCK))
                     && std::fs::symlink_metadata(dir.join(LOCK)).is_ok_and(|m| m.is_file());
             }
-            crate::atomic::is_temp_of(n, MARKER) && crate::atomic::is_live_temp(n)
+            crate::atomic::is_temp_of(n, MARKER) && crate::atomic::is_live_temp(dir, n)
         };
         if entries.iter().all(ours) {
             claim_new(dir, &[LOCK])?;

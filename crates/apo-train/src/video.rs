@@ -354,6 +354,8 @@ pub struct VideoWriter {
     sink: Option<Sink>,
     path: PathBuf,
     tmp: PathBuf,
+    /// How the finished video takes its place (`--force` replaces a plain file).
+    place: atomic::Place,
     size: (u32, u32),
     fps: u32,
     frames: usize,
@@ -363,7 +365,9 @@ impl VideoWriter {
     /// Starts a video of `width × height` frames at `fps` frames per second at `path`, in the
     /// format of its extension, written to a temporary file of a unique name beside it. An
     /// existing file at `path` is replaced (when the video is finished) only with `replace`
-    /// (`--force`), by the output rule of [`crate::input::check_output_file`].
+    /// (`--force`), by the output rule of [`crate::input::check_output_file`], checked again
+    /// as the video takes its place ([`atomic::place`]): a file or link that appears there
+    /// meanwhile stays.
     ///
     /// # Errors
     /// An unknown extension, an existing file without `replace`, an MP4 without a working
@@ -398,6 +402,11 @@ impl VideoWriter {
             sink: None,
             path: path.to_path_buf(),
             tmp,
+            place: if replace {
+                atomic::Place::ReplacePlainFile
+            } else {
+                atomic::Place::New
+            },
             size: (width, height),
             fps,
             frames: 0,
@@ -504,7 +513,7 @@ impl VideoWriter {
                     .with_context(|| format!("cannot sync {}", self.tmp.display()))?;
             }
         }
-        std::fs::rename(&self.tmp, &self.path)
+        atomic::place(&self.tmp, &self.path, self.place)
             .with_context(|| format!("cannot move the video to {}", self.path.display()))?;
         atomic::sync_dir(atomic::parent(&self.path))?;
         Ok((self.path.clone(), self.frames))
@@ -790,12 +799,23 @@ impl EpochVideos {
         if std::fs::symlink_metadata(&out).is_ok() {
             // a file of that name (the user's, or apo's from before an interrupt) is moved
             // aside, never replaced
-            let aside = (1..)
-                .map(|n| self.dir.join(format!("epoch-{epoch}.gif.kept-{n}")))
-                .find(|p| std::fs::symlink_metadata(p).is_err())
-                .context("no free name to move a video aside")?;
-            std::fs::rename(&out, &aside)
-                .with_context(|| format!("cannot move {} aside", out.display()))?;
+            // the first free name, taken without replacing one that appears meanwhile
+            let mut aside = None;
+            for n in 1..=10_000 {
+                let name = self.dir.join(format!("epoch-{epoch}.gif.kept-{n}"));
+                match atomic::rename_no_replace(&out, &name) {
+                    Ok(()) => {
+                        aside = Some(name);
+                        break;
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+                    Err(e) => {
+                        return Err(e)
+                            .with_context(|| format!("cannot move {} aside", out.display()))
+                    }
+                }
+            }
+            let aside = aside.context("no free name to move a video aside")?;
             crate::warnln!(
                 "warning: {} existed; it was moved to {} before the epoch's video was written",
                 out.display(),

@@ -5,6 +5,8 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use apo_core::Algorithm;
+use apo_train::checkpoint::Which;
+use apo_train::playback::LoadedRun;
 use apo_train::progress_csv::{self, ProgressRow};
 use apo_train::run::{Launch, Run};
 use apo_train::RunConfig;
@@ -40,23 +42,41 @@ fn rows_on_disk(dir: &Path) -> Vec<ProgressRow> {
     timeless(progress_csv::read(&dir.join("progress.csv")).expect("progress.csv"))
 }
 
+/// What a checkpoint of the run in `dir` plays: its epoch, its policy's weights and its
+/// observation normalizer (by their exact `Debug` text: shortest round-trip floats).
+fn played(dir: &Path, which: &Which) -> (usize, String, String) {
+    let loaded = LoadedRun::load(dir, which)
+        .unwrap_or_else(|e| panic!("{} {which:?}: {e:#}", dir.display()));
+    (
+        loaded.epoch,
+        format!("{:?}", loaded.policy),
+        format!("{:?}", loaded.normalizer),
+    )
+}
+
+/// Every algorithm, resumed at two points — once from a checkpoint it wrote when asked, once
+/// after it was dropped past its checkpoint (as a killed process is, between the two writes of
+/// a kept epoch), so that an epoch it had recorded is run again — ends bit-identical to a run
+/// that never stopped: its networks, every column of `progress.csv` but the times (V-MPO's
+/// learned temperature included), `episodes.csv`, and the policy and normalizer of the
+/// checkpoints it keeps (`epoch-<N>`, `best`, `latest`).
 #[test]
-fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_stopped() {
+fn every_algorithm_resumed_at_two_points_equals_a_run_that_never_stopped() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let device = Default::default();
-    // return capping carries its cap in the checkpoint; MVPI and CVaR reshape every epoch
-    for algo in [
-        Algorithm::Apo,
-        Algorithm::Ppo,
-        Algorithm::Mvpi,
-        Algorithm::Cvar,
-        Algorithm::Retcap,
-    ] {
+    for &algo in Algorithm::ALL {
         let (straight, split) = (
             tmp.path().join(format!("{algo}-straight")),
             tmp.path().join(format!("{algo}-split")),
         );
-        let config = small(algo, "CartPole-v1", 6);
+        let mut config = small(algo, "CartPole-v1", 6);
+        // the normalizer's statistics travel in state.json, as the cap of return capping does
+        config.train.normalize_obs = true;
+        config.train.checkpoint_every = 3;
+        config.train.keep_checkpoint_every = 2;
+        config.train.eval_every = 2;
+        config.train.eval_episodes = 1;
+        config.train.max_episode_steps = 50;
         let mut run =
             Run::<NdArray>::create(&straight, config.clone(), &Launch::new(1), &device, false)
                 .expect("a new run");
@@ -68,9 +88,10 @@ fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_st
         );
         drop(run);
 
+        // the first stop: a checkpoint at epoch 2, asked for
         let mut run = Run::<NdArray>::create(&split, config, &Launch::new(1), &device, false)
             .expect("a new run");
-        assert_eq!(train(&mut run, Some(3)).len(), 3);
+        assert_eq!(train(&mut run, Some(2)).len(), 2);
         run.checkpoint().expect("a checkpoint");
         drop(run);
         let state = std::fs::read_to_string(split.join("checkpoints/latest/state.json"))
@@ -80,10 +101,27 @@ fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_st
             algo == Algorithm::Retcap,
             "{algo}: the cap is in the checkpoint exactly for return capping: {state}"
         );
+        // the second: dropped after epoch 5 (no checkpoint is due at 5), and stopped between
+        // epoch 4's two writes (`latest`, then the kept `epoch-000004`): epoch 5 is run again,
+        // and the kept checkpoint made again on resume
         let mut run =
             Run::<NdArray>::resume(&split, &Launch::new(1), &device, None).expect("resumes");
-        assert_eq!(run.epochs_done(), 3);
-        assert_eq!(train(&mut run, None).len(), 3);
+        assert_eq!(run.epochs_done(), 2);
+        assert_eq!(train(&mut run, Some(3)).len(), 3);
+        drop(run);
+        std::fs::remove_dir_all(split.join("checkpoints/epoch-000004")).expect("rm");
+        let mut run =
+            Run::<NdArray>::resume(&split, &Launch::new(1), &device, None).expect("resumes");
+        assert_eq!(
+            run.epochs_done(),
+            4,
+            "{algo}: resumed from the kept epoch 4"
+        );
+        assert!(
+            split.join("checkpoints/epoch-000004").is_dir(),
+            "{algo}: made again"
+        );
+        assert_eq!(train(&mut run, None).len(), 2);
         assert!(run.finished());
         assert_eq!(
             (
@@ -91,7 +129,7 @@ fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_st
                 run.trainer().learner().value_params()
             ),
             params,
-            "{algo}: the networks after 3 + 3 epochs equal those after 6"
+            "{algo}: the networks after 2 + 2 (+ 1 lost) + 2 epochs equal those after 6"
         );
         drop(run);
         assert_eq!(
@@ -105,6 +143,19 @@ fn a_run_stopped_dropped_and_resumed_from_its_directory_equals_one_that_never_st
             episodes(&straight),
             "{algo}: episodes.csv"
         );
+        for which in [
+            Which::Epoch(2),
+            Which::Epoch(4),
+            Which::Epoch(6),
+            Which::Best,
+            Which::Latest,
+        ] {
+            assert_eq!(
+                played(&split, &which),
+                played(&straight, &which),
+                "{algo}: the checkpoint {which:?} differs from the run that never stopped"
+            );
+        }
     }
 }
 

@@ -490,6 +490,97 @@ fn sweeps_are_counted_before_anything_is_allocated() {
         err.contains("more than the 2") && err.contains("--max-runs"),
         "{err}"
     );
+    // --max-runs itself is bounded, said in --help and in the error: no limit a user gives
+    // lets a count through to an allocation
+    let err = fails(&[
+        "sweep",
+        "--algo",
+        "ppo",
+        "--env",
+        "CartPole-v1",
+        "--seeds",
+        "0..18446744073709551615",
+        "--max-runs",
+        "18446744073709551615",
+        "--out",
+        path(&out),
+    ]);
+    assert!(
+        err.contains("--max-runs") && err.contains("1..=1000000"),
+        "{err}"
+    );
+    let help = ok(&["sweep", "--help"]);
+    assert!(help.contains("1..=1000000"), "{help}");
+    // a range of more seeds than the most --max-runs allows, and a long list: refused by count,
+    // the long text quoted as an excerpt
+    let list: Vec<String> = (0..20_000).map(|i| i.to_string()).collect();
+    for (seeds, says) in [
+        (
+            "0..18446744073709551615".to_string(),
+            "more than the 1000000 runs",
+        ),
+        (
+            list.join(","),
+            "lists 20000 seeds, more than the 10000 runs",
+        ),
+    ] {
+        let max = if seeds.contains("..") {
+            "1000000"
+        } else {
+            "10000"
+        };
+        let err = fails(&[
+            "sweep",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--seeds",
+            &seeds,
+            "--max-runs",
+            max,
+            "--out",
+            path(&out),
+        ]);
+        assert!(err.contains(says) && err.len() < 1_000, "{err}");
+    }
+    assert!(!out.exists(), "nothing is created");
+}
+
+/// Rule: a memory check takes the process's own limits into account (`ulimit -v`), so a run
+/// that passes it does not then abort on an allocation: the limit is named in the refusal.
+#[test]
+fn the_memory_check_takes_the_process_limit_into_account() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let dir = tmp.path().join("run");
+    let limited = std::process::Command::new("bash")
+        .args([
+            "-c",
+            // 3 GiB of address space; the run asks for about 9 GiB of batch
+            "ulimit -v 3145728 && exec \"$0\" \"$@\"",
+            env!("CARGO_BIN_EXE_apo"),
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "Hopper-v4",
+            "--num-envs",
+            "64",
+            "--steps-per-epoch",
+            "4000000",
+            "--quiet",
+            "--out",
+            path(&dir),
+        ])
+        .output()
+        .expect("bash");
+    let err = text(&limited.stderr);
+    assert_eq!(limited.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("GiB of memory") && err.contains("ulimit -v"),
+        "{err}"
+    );
+    assert!(!dir.exists(), "no directory is left behind");
 }
 
 #[test]

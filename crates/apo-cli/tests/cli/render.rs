@@ -289,3 +289,111 @@ fn mujoco_runs_render_headless_and_say_why_when_opengl_is_missing() {
     );
     assert!(!unfilmable.exists(), "{stderr}");
 }
+
+/// Rule: the final placement of an output the user named cannot replace what appeared after
+/// the check. A file or a link put at `--out` while the video is recorded stays (with
+/// `--force` too, for a link), the render fails naming it and leaves no temporary file; and a
+/// user's file named like apo's temporary files, of a process that is gone, is not apo's.
+#[test]
+fn a_file_that_appears_at_the_output_during_a_render_is_not_replaced() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    small(&run, &[]);
+    let videos = tmp.path().join("videos");
+    std::fs::create_dir(&videos).expect("mkdir");
+    // a user's file of a temporary-looking name, of a process id that is not running
+    let lookalike = videos.join(".race.gif.apo-4000000-0.tmp");
+    std::fs::write(&lookalike, "mine").expect("write");
+    let theirs = tmp.path().join("theirs.txt");
+    std::fs::write(&theirs, "theirs").expect("write");
+    for (case, force) in [("file", false), ("link", false), ("link", true)] {
+        let out = videos.join(format!("race-{case}-{force}.gif"));
+        let mut planted = false;
+        // the render must still be running when the file appears: longer renders until it is
+        for episodes in ["20", "80", "320"] {
+            let mut args = vec![
+                "render",
+                "--run",
+                path(&run),
+                "--episodes",
+                episodes,
+                "--width",
+                "320",
+                "--height",
+                "240",
+                "--out",
+                path(&out),
+            ];
+            if force {
+                args.push("--force");
+            }
+            let mut child = super::spawn(&args);
+            let prefix = format!(".race-{case}-{force}.gif.apo-");
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+            let started = loop {
+                let temp = std::fs::read_dir(&videos).expect("ls").any(|e| {
+                    e.expect("entry")
+                        .file_name()
+                        .to_string_lossy()
+                        .starts_with(&prefix)
+                });
+                if temp || child.try_wait().expect("try_wait").is_some() {
+                    break temp;
+                }
+                assert!(
+                    std::time::Instant::now() < deadline,
+                    "the render did not start"
+                );
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            };
+            if started {
+                match case {
+                    "file" => std::fs::write(&out, "mine").expect("write"),
+                    _ => std::os::unix::fs::symlink(&theirs, &out).expect("link"),
+                }
+            }
+            if started && child.try_wait().expect("try_wait").is_none() {
+                let (code, stdout, stderr) = super::finish(child, 300);
+                assert_eq!(code, Some(1), "{case}, force {force}: {stdout}{stderr}");
+                assert!(
+                    stderr.contains(&path(&out).to_string())
+                        && stderr.contains("nothing was replaced"),
+                    "{case}, force {force}: {stderr}"
+                );
+                planted = true;
+                break;
+            }
+            let _ = child.wait();
+            let _ = std::fs::remove_file(&out);
+        }
+        assert!(
+            planted,
+            "{case}: no render lasted long enough to plant a file during it"
+        );
+        match case {
+            "file" => assert_eq!(std::fs::read_to_string(&out).expect("read"), "mine"),
+            _ => assert_eq!(std::fs::read_link(&out).expect("the link stays"), theirs),
+        }
+        std::fs::remove_file(&out).expect("rm");
+    }
+    assert_eq!(std::fs::read_to_string(&theirs).expect("read"), "theirs");
+    // nothing but the user's look-alike is left: no temporary file of apo's
+    let left: Vec<String> = std::fs::read_dir(&videos)
+        .expect("ls")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left, [".race.gif.apo-4000000-0.tmp"], "{left:?}");
+    ok(&[
+        "render",
+        "--run",
+        path(&run),
+        "--episodes",
+        "1",
+        "--out",
+        path(&videos.join("race.gif")),
+    ]);
+    assert_eq!(
+        std::fs::read_to_string(&lookalike).expect("the look-alike stays"),
+        "mine"
+    );
+}

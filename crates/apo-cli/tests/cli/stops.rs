@@ -136,6 +136,50 @@ fn every_stop_signal_checkpoints_and_exits_with_its_status_and_the_resume_comman
     }
 }
 
+/// Rule: a SIGHUP that `apo train` was started ignoring (`nohup apo train … &`) stays ignored,
+/// as for other Unix tools: the run goes on; SIGTERM still stops it with a checkpoint.
+#[test]
+fn a_run_started_ignoring_sighup_keeps_going_after_one() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("nohup");
+    let child = std::process::Command::new("nohup")
+        .arg(env!("CARGO_BIN_EXE_apo"))
+        .args([
+            "train",
+            "--algo",
+            "ppo",
+            "--env",
+            "CartPole-v1",
+            "--epochs",
+            "500",
+            "--steps-per-epoch",
+            "200",
+            "--quiet",
+            "--out",
+            path(&run),
+        ])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("nohup apo train");
+    wait_for(&run.join("progress.csv"));
+    signal(&child, "HUP");
+    let before = timeless(&run).len();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while timeless(&run).len() < before + 3 {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the run stopped training after SIGHUP under nohup"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    signal(&child, "TERM");
+    let (code, stdout, stderr) = finish(child, 120);
+    assert_eq!(code, Some(143), "{stdout}{stderr}");
+    assert!(stdout.contains("interrupted by SIGTERM"), "{stdout}");
+}
+
 /// An interrupted `apo bench epoch` removes its temporary run directory.
 #[test]
 fn an_interrupted_bench_epoch_leaves_no_temporary_run() {
@@ -245,6 +289,15 @@ fn a_signal_to_the_sweep_reaches_its_runs_which_checkpoint_and_nothing_is_orphan
         assert!(Instant::now() < deadline, "the run did not start");
         std::thread::sleep(Duration::from_millis(20));
     }
+    // a run training under its lock is told apart from an interrupted one, and not launched
+    let standing = super::apo(&["sweep", "--status", "--out", path(&out)]);
+    let said = text(&standing.stdout);
+    assert!(
+        said.contains("CartPole-v1-ppo-s0  training (pid ")
+            && said.contains("a new submission would launch nothing"),
+        "{said}{}",
+        text(&standing.stderr)
+    );
     let status = Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()

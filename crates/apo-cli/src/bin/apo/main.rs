@@ -201,6 +201,9 @@ fn parse_algo(s: &str) -> Result<Algorithm, String> {
     })
 }
 
+/// The most characters of an error printed (a longer one ends `… (N bytes)`).
+const ERROR_CHARS: usize = 2_000;
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
@@ -251,7 +254,12 @@ fn main() -> ExitCode {
             // the reader went away (`apo list | head -1`): end as a process killed by SIGPIPE
             return ExitCode::from(141);
         }
-        apo_train::warnln!("error: {e:#}");
+        // an error quotes at most a short excerpt of what it found (the readers cut theirs;
+        // this bounds any other)
+        apo_train::warnln!(
+            "error: {}",
+            apo_train::input::clip(&format!("{e:#}"), ERROR_CHARS)
+        );
         if let Some(hint) = atari_hint(&e, cfg!(feature = "atari")) {
             apo_train::warnln!("{hint}");
         }

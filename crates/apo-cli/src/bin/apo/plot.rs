@@ -31,6 +31,7 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
         &apo_cli::plot::PlotOptions {
             smooth: args.smooth,
             column: args.column.clone(),
+            replace: args.force,
         },
     )?;
     apo_cli::outln!("wrote {}", args.out.display())?;

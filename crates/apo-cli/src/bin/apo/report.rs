@@ -70,6 +70,21 @@ fn report_into(args: &ReportArgs) -> anyhow::Result<()> {
     let mut report = report::report(&runs, args.last as usize, &mut |env, options| {
         report::random_baseline(env, options, episodes, 0)
     })?;
+    // the statistics compare every ordered pair of settings: their count is bounded first
+    let settings: std::collections::BTreeSet<String> = report
+        .groups
+        .iter()
+        .map(report::GroupReport::label)
+        .collect();
+    if settings.len() > apo_cli::stats::MAX_ALGORITHMS {
+        anyhow::bail!(
+            "the runs form {} settings (algorithm and variant), more than the {} a comparison may have \
+             (1..={}: every ordered pair is an estimate of its own); report fewer runs at once",
+            settings.len(),
+            apo_cli::stats::MAX_ALGORITHMS,
+            apo_cli::stats::MAX_ALGORITHMS
+        );
+    }
     let options = report::StatsOptions {
         normalization: if args.normalize == "minmax" {
             report::Normalization::MinMax

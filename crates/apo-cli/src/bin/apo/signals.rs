@@ -2,7 +2,9 @@
 //! `kill` and schedulers, SIGHUP from a closed terminal, SIGQUIT from Ctrl-\\): a training
 //! checkpoints and stops on the first and exits at once on the second, or when its epoch has
 //! not ended [`STOP_GRACE`] after the first; a render removes its unfinished file; a sweep
-//! passes each one on to its running runs and waits for them.
+//! passes each one on to its running runs and waits for them. A SIGHUP that the process was
+//! started ignoring (`nohup apo train … &`) stays ignored, as it does for other Unix tools:
+//! a closed terminal then leaves the run going.
 
 /// Signals that come within this of the first count as the first (see [`Signals::install`]).
 pub const SAME_SIGNAL_WITHIN: Duration = Duration::from_millis(500);
@@ -57,7 +59,12 @@ impl Signals {
             Arc::new(AtomicBool::new(false)),
             Arc::new(AtomicUsize::new(0)),
         );
-        let mut signals = signal_hook::iterator::Signals::new(STOP_SIGNALS)
+        // a hangup ignored from the start (nohup) stays ignored: no handler replaces SIG_IGN
+        let watched: Vec<i32> = STOP_SIGNALS
+            .into_iter()
+            .filter(|&s| s != SIGHUP || !ignored(s))
+            .collect();
+        let mut signals = signal_hook::iterator::Signals::new(watched)
             .context("installing the signal handlers")?;
         let (raised, last) = (Arc::clone(&stop), Arc::clone(&which));
         std::thread::spawn(move || {
@@ -77,6 +84,17 @@ impl Signals {
             }
         });
         Ok(Self { stop, which })
+    }
+}
+
+/// Whether `signal` is ignored (`SIG_IGN`) in this process now, as `nohup` leaves SIGHUP.
+fn ignored(signal: i32) -> bool {
+    // SAFETY: sigaction with a null new action only reads the current one into `old`, a
+    // zeroed struct owned here
+    unsafe {
+        let mut old: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(signal, std::ptr::null(), &mut old) == 0
+            && old.sa_sigaction == libc::SIG_IGN
     }
 }
 
@@ -135,7 +153,12 @@ impl SweepSignals {
     /// Installs the handler thread.
     pub fn install() -> anyhow::Result<Self> {
         use std::sync::atomic::Ordering;
-        let mut signals = signal_hook::iterator::Signals::new(STOP_SIGNALS)
+        // a hangup ignored from the start (nohup) stays ignored: no handler replaces SIG_IGN
+        let watched: Vec<i32> = STOP_SIGNALS
+            .into_iter()
+            .filter(|&s| s != SIGHUP || !ignored(s))
+            .collect();
+        let mut signals = signal_hook::iterator::Signals::new(watched)
             .context("installing the signal handlers")?;
         let handle = signals.handle();
         let received = Arc::new(apo_cli::sweep::Received::default());

@@ -82,8 +82,8 @@ pub struct SweepArgs {
     /// N of "the last N epochs"; 1..=1000000000.
     #[arg(long, default_value_t = 20, value_parser = apo_cli::flags::count::<u64>(1, 1_000_000_000))]
     last: u64,
-    /// The most runs the sweep may have (counted before anything starts).
-    #[arg(long, default_value_t = sweep::DEFAULT_MAX_RUNS, value_parser = clap::value_parser!(u64).range(1..))]
+    /// The most runs the sweep may have (counted before anything starts); 1..=1000000.
+    #[arg(long, default_value_t = sweep::DEFAULT_MAX_RUNS, value_parser = apo_cli::flags::count::<u64>(1, sweep::MAX_RUNS))]
     max_runs: u64,
     /// No progress bar.
     #[arg(long)]
@@ -187,6 +187,10 @@ fn status(args: &SweepArgs) -> anyhow::Result<ExitCode> {
         let said = match standing {
             S::Finished => format!("finished ({epochs} epochs)"),
             S::Running { id } => format!("running (task {id})"),
+            S::Training { holder } if holder.is_empty() => {
+                "training (its run is locked)".to_string()
+            }
+            S::Training { holder } => format!("training ({holder} holds its lock)"),
             S::Queued { id, reason } if reason == "None" || reason.is_empty() => {
                 format!("queued (task {id})")
             }
