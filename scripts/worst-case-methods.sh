@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The field's worst-case methods under one protocol (docs/results/worst-case-methods.md, where the
-# protocol is written down): MVPI, CVaR PPO and return capping, each with its one risk parameter
-# picked on the tuning tasks and seeds of `--preset robust`, then run on the 8 GUARD suites of the
-# campaign (docs/results/guard-campaign.md) at its budget, beside its TRPO, PPO, APO and PAPO runs.
+# protocol is written down): MVPI, CVaR PPO, return capping and apo's tail-weighted PPO (tailppo),
+# each with its one risk parameter picked on the tuning tasks and seeds of `--preset robust`, then
+# run on the 8 GUARD suites of the campaign (docs/results/guard-campaign.md) at its budget, beside
+# its TRPO, PPO, APO and PAPO runs.
 #   bash scripts/worst-case-methods.sh tune [OUT]  each method's grid on Hopper-v4 and Goal_Point,
 #                                                  seeds 100-101, 30 epochs x 10 000 steps
 #   bash scripts/worst-case-methods.sh pick [OUT]  the value the rule picks for each method
@@ -20,7 +21,7 @@ out=${2:-results/worst-case-methods}
 jobs=${JOBS:-1}
 apo=${APO:-./target/release/apo}
 # method:key:grid (the grid's middle is the method's default)
-methods=${METHODS:-"mvpi:mv_lambda:0.01,0.1,1 cvar:alpha:0.1,0.2,0.5 retcap:alpha:0.1,0.2,0.5"}
+methods=${METHODS:-"mvpi:mv_lambda:0.01,0.1,1 cvar:alpha:0.1,0.2,0.5 retcap:alpha:0.1,0.2,0.5 tailppo:tail_weight:2,4,8"}
 suites=${SUITES:-Goal_Point Push_Point Goal_Swimmer Push_Swimmer Goal_Arm3 Goal_Drone Goal_Hopper Push_Hopper}
 [ -x "$apo" ] || { echo "error: $apo is missing: cargo build --release -p apo-cli" >&2; exit 1; }
 sweep() { nice -n 19 "$apo" sweep --jobs "$jobs" --threads 1 --metric worst-last --quiet "$@"; }

@@ -286,7 +286,7 @@ impl RangeSum {
             }
             if hi % 2 == 1 {
                 hi -= 1;
-                right = self.nodes[hi] + right;
+                right += self.nodes[hi];
             }
             lo /= 2;
             hi /= 2;

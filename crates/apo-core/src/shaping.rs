@@ -2,8 +2,8 @@
 //! ordinary policy update — the rewards the advantages are computed from, or the episodes the
 //! update sees.
 //!
-//! Three methods, each a PPO update on a shaped batch (`crate::algorithm`'s `mvpi`, `cvar`
-//! and `retcap`):
+//! Four methods, each a PPO update on a shaped batch (`crate::algorithm`'s `mvpi`, `cvar`,
+//! `retcap` and `tailppo`):
 //!
 //! * **Mean-variance policy iteration** (Zhang, Liu & Whiteson, "Mean-Variance Policy
 //!   Iteration for Risk-Averse Reinforcement Learning", AAAI 2021; the per-step reward
@@ -28,6 +28,11 @@
 //!   to `min(R, C)` and no episode is discarded. `C` follows the policy's `VaR_α`:
 //!   `C_k = max(C_{k−1} + η·(VaR_α(π_{k−1}) − C_{k−1}), C_M)` ([`ShapingRule::ReturnCap`]),
 //!   kept in [`ShapingState`] (and in checkpoints). At `C = ∞`, `r^a = r`: PPO's batch.
+//! * **Tail-weighted PPO**, apo's own candidate (`docs/results/worst-case-methods.md`): every
+//!   row is kept, and the normalized advantages of the episodes at or below `VaR_α` are
+//!   multiplied by a weight `w ≥ 1` ([`ShapingRule::TailWeight`]); PPO's clipped surrogate is
+//!   positively homogeneous in the advantage, so this counts the tail's rows `w` times. At
+//!   `w = 1` the batch is PPO's, bit for bit.
 //!
 //! Where the papers leave a choice, apo's (documented in `docs/algorithms.md`):
 //!
@@ -73,6 +78,14 @@ pub enum ShapingRule {
         /// The lowest cap `C_M` (`−∞`: none).
         min_cap: f64,
     },
+    /// Tail-weighted PPO: every row, the advantages of the episodes at or below `VaR_α` times
+    /// `w`.
+    TailWeight {
+        /// The tail's probability α ∈ (0, 1].
+        alpha: f64,
+        /// The weight `w ≥ 1` of the tail's advantages.
+        weight: f64,
+    },
 }
 
 /// What shaping carries from one epoch to the next: return capping's cap `C` (`None` until
@@ -95,8 +108,9 @@ impl ShapingState {
 /// What one epoch's shaping did, for the epoch's log.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShapingReport {
-    /// The level the rule used: `y` (mean-variance), `VaR_α` (CVaR) or the cap `C` the batch
-    /// was shaped with (return capping); NaN when no episode ended (CVaR, capping).
+    /// The level the rule used: `y` (mean-variance), `VaR_α` (CVaR, tail weighting) or the cap
+    /// `C` the batch was shaped with (return capping); NaN when no episode ended (CVaR,
+    /// capping, tail weighting).
     pub level: f64,
     /// The share of the batch's rows the policy update sees (1 but for CVaR).
     pub kept: f64,
@@ -353,6 +367,29 @@ pub fn shape(
         return Err(ShapingError::Distributed { ranks: comm.size() });
     }
     Ok(match rule {
+        ShapingRule::TailWeight { alpha, weight } => {
+            let var = value_at_risk(batch, alpha, comm);
+            let mut policy = batch.clone();
+            // w = 1 leaves the batch as it is (PPO's, bit for bit)
+            if let Some(var) = var.filter(|_| weight != 1.0) {
+                for (start, end, path) in batch.path_ranges() {
+                    let ret: f64 = batch.reward[start..end].iter().map(|&r| f64::from(r)).sum();
+                    if path.episode && ret <= var {
+                        for a in &mut policy.adv[start..end] {
+                            *a = (f64::from(*a) * weight) as f32;
+                        }
+                    }
+                }
+            }
+            Shaped {
+                policy,
+                value: None,
+                report: ShapingReport {
+                    level: var.unwrap_or(f64::NAN),
+                    kept: 1.0,
+                },
+            }
+        }
         ShapingRule::MeanVariance { lambda: weight } => {
             let mut totals = [
                 batch.reward.iter().map(|&r| f64::from(r)).sum::<f64>(),

@@ -274,6 +274,7 @@ fn policy_update(config: &mut apo_core::AlgoConfig) -> &mut apo_core::ProximalCo
         Mvpi(c) => &mut c.policy_update,
         Cvar(c) => &mut c.policy_update,
         Retcap(c) => &mut c.policy_update,
+        TailPpo(c) => &mut c.policy_update,
         Apo(_) | Trpo(_) => unreachable!("trust-region algorithms have no Adam update"),
     }
 }
@@ -292,8 +293,8 @@ fn host_proximal_updates_match_burn_for_every_algorithm() {
     let (obs_dim, hidden) = (5, vec![16, 16]);
     let fits = [Host, Host, Backend, Host];
     let mut worst = 0.0f64;
-    // MVPI, CVaR and return capping update as PPO on their shaped batch (this batch records no
-    // rewards or paths to shape): PPO's row covers their policy step
+    // MVPI, CVaR, return capping and tail-weighted PPO update as PPO on their shaped batch (this
+    // batch records no rewards or paths to shape): PPO's row covers their policy step
     for algo in Algorithm::ALL.iter().copied().filter(|a| {
         !matches!(
             a,
@@ -302,6 +303,7 @@ fn host_proximal_updates_match_burn_for_every_algorithm() {
                 | Algorithm::Mvpi
                 | Algorithm::Cvar
                 | Algorithm::Retcap
+                | Algorithm::TailPpo
         )
     }) {
         for action in [

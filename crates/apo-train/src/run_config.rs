@@ -1193,12 +1193,12 @@ mod tests {
         let err = build(Algorithm::Apo, "algo.clip=0.1").unwrap_err();
         assert_eq!(
             err.to_string(),
-            "unknown config key `algo.apo.clip`: apo has no setting `clip` (it is a setting of papo, ppo, mvpi, cvar, retcap)"
+            "unknown config key `algo.apo.clip`: apo has no setting `clip` (it is a setting of papo, ppo, mvpi, cvar, retcap, tailppo)"
         );
         let err = build(Algorithm::Trpo, "algo.policy_update.minibatch_size=64").unwrap_err();
         assert!(
             err.to_string().contains(
-                "(it is a setting of papo, ppo, a2c, espo, alphappo, vmpo, mvpi, cvar, retcap)"
+                "(it is a setting of papo, ppo, a2c, espo, alphappo, vmpo, mvpi, cvar, retcap, tailppo)"
             ),
             "{err}"
         );

@@ -236,7 +236,7 @@ fn checkpoint_files_and_directories_are_synced_before_and_after_the_swap() {
             "-f",
             "-y",
             "-e",
-            "trace=fsync,rename",
+            "trace=fsync,rename,renameat2",
             "-o",
             path(&trace),
             env!("CARGO_BIN_EXE_apo"),
@@ -299,9 +299,10 @@ fn checkpoint_files_and_directories_are_synced_before_and_after_the_swap() {
             .any(|l| l.contains(" fsync(") && l.contains(&parent)),
         "checkpoints/ is synced after the swap"
     );
-    // progress.csv's temporary file (`.progress.csv.apo-<pid>-<n>.tmp`) is synced before its rename
+    // progress.csv's temporary file (`.progress.csv.apo-<pid>-<n>.tmp`) is synced before it
+    // takes its place (`renameat2`, which replaces nothing it may not: `atomic::place`)
     let progress = format!("{}/.progress.csv.apo-", path(&run));
-    assert!(first("fsync", &format!("<{progress}")) < first("rename", &format!("\"{progress}")));
+    assert!(first("fsync", &format!("<{progress}")) < first("renameat2", &format!("\"{progress}")));
 }
 
 #[test]

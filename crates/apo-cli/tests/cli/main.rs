@@ -622,7 +622,7 @@ fn bad_input_gets_clear_errors() {
         ),
         (
             "algo.clip=0.1",
-            "apo has no setting `clip` (it is a setting of papo, ppo, mvpi, cvar, retcap)",
+            "apo has no setting `clip` (it is a setting of papo, ppo, mvpi, cvar, retcap, tailppo)",
         ),
         (
             "algo.lamda=0.9",

@@ -6,8 +6,9 @@ use std::collections::BTreeMap;
 
 use super::*;
 
-const ALGORITHMS: [&str; 11] = [
+const ALGORITHMS: [&str; 12] = [
     "apo", "papo", "trpo", "ppo", "a2c", "espo", "vmpo", "alphappo", "mvpi", "cvar", "retcap",
+    "tailppo",
 ];
 
 /// `(full key, its documentation, its value)` of every key `apo config` prints (optional keys

@@ -326,16 +326,22 @@ fn reports_keep_epoch_targets_apart_join_aliases_and_name_missing_records() {
         stderr.contains("missing at the end (the checkpoint is at epoch 3)"),
         "{stderr}"
     );
-    // a header that is not apo's is named, with the file's own header
+    // a header that is not apo's is named by its column, in every reader and in resume alike
     std::fs::write(
         &progress,
         text_rows.replacen("ep_ret_mean", "ep_ret_avg", 1),
     )
     .expect("write");
+    let says = "column 4 of the header, `ep_ret_avg`, is not a column of apo's progress file";
     let err = fails(&["summary", path(&run)]);
+    assert!(err.contains(says), "{err}");
+    let err = fails(&["train", "--resume", path(&run), "--quiet"]);
+    assert!(err.contains(says), "resume: {err}");
     assert!(
-        err.contains("no `ep_ret_mean` column") && err.contains("ep_ret_avg"),
-        "{err}"
+        std::fs::read_to_string(&progress)
+            .expect("read")
+            .contains("ep_ret_avg"),
+        "a refused resume rewrites nothing"
     );
     // a run without its records: named, in every reader
     std::fs::remove_file(&progress).expect("rm");

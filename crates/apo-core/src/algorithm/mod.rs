@@ -22,6 +22,7 @@ mod mvpi;
 mod papo;
 mod ppo;
 mod retcap;
+mod tailppo;
 mod trpo;
 mod vmpo;
 
@@ -47,6 +48,7 @@ pub use mvpi::MvpiConfig;
 pub use papo::PapoConfig;
 pub use ppo::PpoConfig;
 pub use retcap::RetcapConfig;
+pub use tailppo::TailPpoConfig;
 pub use trpo::TrpoConfig;
 pub use vmpo::VmpoConfig;
 
@@ -397,6 +399,7 @@ algorithms! {
     Mvpi(MvpiConfig) = "mvpi",
     Cvar(CvarConfig) = "cvar",
     Retcap(RetcapConfig) = "retcap",
+    TailPpo(TailPpoConfig) = "tailppo",
 }
 
 impl fmt::Display for Algorithm {

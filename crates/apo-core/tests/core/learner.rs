@@ -413,6 +413,10 @@ fn shorten(config: &mut AlgoConfig) {
             c.policy_update.iters = 10;
             c.value_update.iters = 10;
         }
+        AlgoConfig::TailPpo(c) => {
+            c.policy_update.iters = 10;
+            c.value_update.iters = 10;
+        }
     }
 }
 

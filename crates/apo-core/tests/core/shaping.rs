@@ -1,11 +1,14 @@
-//! Risk shaping (MVPI, CVaR, return capping) against hand computations: the augmented and
-//! capped rewards, the α-quantile and the episodes it selects, the cap's update, the
-//! advantages computed again from shaped rewards by an independent float64 GAE, and the
-//! reductions to PPO (λ = 0, α = 1, C = ∞), in the batch and in the learner's update.
+//! Risk shaping (MVPI, CVaR, return capping, tail weighting) against hand computations: the
+//! augmented and capped rewards, the α-quantile and the episodes it selects or weights, the
+//! cap's update, the advantages computed again from shaped rewards by an independent float64
+//! GAE, and the reductions to PPO (λ = 0, α = 1, C = ∞, w = 1), in the batch and in the
+//! learner's update.
 
 use crate::common;
 
-use apo_core::algorithm::{AlgoConfig, AlgorithmConfig, CvarConfig, MvpiConfig, PpoConfig};
+use apo_core::algorithm::{
+    AlgoConfig, AlgorithmConfig, CvarConfig, MvpiConfig, PpoConfig, TailPpoConfig,
+};
 use apo_core::buffer::{Batch, BufferLayout, PathEnd, RolloutBuffer};
 use apo_core::policy::{ActionKind, MlpPolicyConfig};
 use apo_core::proximal::ProximalConfig;
@@ -374,6 +377,68 @@ fn the_cap_starts_at_the_first_quantile_and_moves_by_eta_above_the_minimum() {
     assert_eq!(state.cap, Some(2.0));
 }
 
+/// Tail weighting keeps every row and multiplies the normalized advantages of the episodes at
+/// or below `VaR_α` by `w`: by hand, with α = 0.5 of the returns (6, 0.5), episode B's four
+/// rows (3..7) get `w·A`, A's and the cut path C's rows keep PPO's advantage; and the clipped
+/// surrogate of a weighted row is `w` times PPO's.
+#[test]
+fn tail_weighting_multiplies_the_advantages_of_the_episodes_at_or_below_the_quantile() {
+    let b = batch();
+    let comm = Comm::default();
+    let s = shape(
+        &b,
+        ShapingRule::TailWeight {
+            alpha: 0.5,
+            weight: 4.0,
+        },
+        &mut ShapingState::default(),
+        GAMMA,
+        LAMBDA,
+        &comm,
+    )
+    .expect("shapes");
+    assert_eq!(s.report.level, 0.5);
+    assert_eq!(s.report.kept, 1.0);
+    assert!(s.value.is_none(), "the critic fits the batch as collected");
+    let want: Vec<f32> = b
+        .adv
+        .iter()
+        .enumerate()
+        .map(|(i, &a)| if (3..7).contains(&i) { 4.0 * a } else { a })
+        .collect();
+    assert_eq!(s.policy.adv, want);
+    assert_eq!(
+        Batch {
+            adv: b.adv.clone(),
+            ..s.policy.clone()
+        },
+        b,
+        "only adv changes"
+    );
+    // PPO's clipped surrogate min(ρA, clip(ρ, 1 ± ε)A) is positively homogeneous in A
+    let surrogate = |ratio: f64, adv: f64| (ratio * adv).min(ratio.clamp(0.8, 1.2) * adv);
+    for (ratio, adv) in [(0.5, 1.3), (1.1, -0.7), (1.5, 2.0), (0.9, -1.1)] {
+        assert!((surrogate(ratio, 4.0 * adv) - 4.0 * surrogate(ratio, adv)).abs() < 1e-12);
+    }
+    // no episode ended: nothing is weighted
+    let mut cut = b.clone();
+    cut.paths.iter_mut().for_each(|p| p.episode = false);
+    let s = shape(
+        &cut,
+        ShapingRule::TailWeight {
+            alpha: 0.5,
+            weight: 4.0,
+        },
+        &mut ShapingState::default(),
+        GAMMA,
+        LAMBDA,
+        &comm,
+    )
+    .expect("shapes");
+    assert!(s.report.level.is_nan());
+    assert_eq!(s.policy, cut);
+}
+
 #[test]
 fn each_shaping_reduces_to_ppo_in_the_batch() {
     let b = batch();
@@ -381,6 +446,10 @@ fn each_shaping_reduces_to_ppo_in_the_batch() {
     for rule in [
         ShapingRule::MeanVariance { lambda: 0.0 },
         ShapingRule::WorstEpisodes { alpha: 1.0 },
+        ShapingRule::TailWeight {
+            alpha: 0.5,
+            weight: 1.0,
+        },
     ] {
         let s =
             shape(&b, rule, &mut ShapingState::default(), GAMMA, LAMBDA, &comm).expect("shapes");
@@ -442,7 +511,7 @@ fn updated(config: AlgoConfig) -> (Vec<f64>, Vec<f64>) {
 }
 
 #[test]
-fn mvpi_at_lambda_0_and_cvar_at_alpha_1_update_as_ppo_bit_for_bit() {
+fn mvpi_at_lambda_0_cvar_at_alpha_1_and_tailppo_at_w_1_update_as_ppo_bit_for_bit() {
     let ppo = PpoConfig::paper_defaults();
     let (policy_update, value_update) = (
         ProximalConfig {
@@ -473,10 +542,20 @@ fn mvpi_at_lambda_0_and_cvar_at_alpha_1_update_as_ppo_bit_for_bit() {
         value_update,
         ..CvarConfig::paper_defaults()
     });
+    let tailppo = |tail_weight: f64| {
+        AlgoConfig::TailPpo(TailPpoConfig {
+            tail_weight,
+            policy_update,
+            value_update,
+            ..TailPpoConfig::paper_defaults()
+        })
+    };
     assert_eq!(updated(mvpi(0.0)), want, "mvpi, λ = 0");
     assert_eq!(updated(cvar), want, "cvar, α = 1");
-    // and a weight that is not 0 changes the update
+    assert_eq!(updated(tailppo(1.0)), want, "tailppo, w = 1");
+    // and a weight that is not 0 (mvpi) or 1 (tailppo) changes the update
     assert_ne!(updated(mvpi(0.5)), want);
+    assert_ne!(updated(tailppo(4.0)), want);
 }
 
 #[test]
