@@ -29,9 +29,10 @@ pub struct PlotOptions {
     /// Plot this numeric column of `progress.csv` (e.g. `kl`, `ls_rejected_objective`,
     /// `bias`; `true`/`false` as 1/0) instead of the returns (`None`).
     pub column: Option<String>,
-    /// Whether a plain file at `out` is replaced (`--force`); without it, a file at `out` —
-    /// one that appeared while the figure was drawn included — stays and the plot fails.
-    pub replace: bool,
+    /// How the figure takes its place at `out` (`apo_train::atomic::Place`): `New` (the
+    /// default) replaces nothing, a file that appeared while the figure was drawn included;
+    /// `ReplacePlainFile` (`--force`) a plain file.
+    pub place: apo_train::atomic::Place,
 }
 
 impl Default for PlotOptions {
@@ -40,7 +41,7 @@ impl Default for PlotOptions {
         Self {
             smooth: 1,
             column: None,
-            replace: false,
+            place: apo_train::atomic::Place::New,
         }
     }
 }
@@ -303,11 +304,14 @@ fn named_column(
 /// Each term is divided before summing, so finite values never overflow to infinity.
 fn moving_average(values: &[f64], window: usize) -> Vec<f64> {
     let window = window.max(1);
+    // each window's sum from a tree of pairwise sums (O(n log n) whatever the window), of the
+    // values scaled by a power of two at least the window (exactly, so no sum overflows)
+    let scale = (window as f64).log2().ceil().exp2();
+    let tree = crate::stats::RangeSum::new(values.iter().map(|v| v / scale));
     (0..values.len())
         .map(|i| {
-            let terms = &values[(i + 1).saturating_sub(window)..=i];
-            let n = terms.len() as f64;
-            terms.iter().map(|v| v / n).sum()
+            let from = (i + 1).saturating_sub(window);
+            tree.sum(from, i + 1) / (i + 1 - from) as f64 * scale
         })
         .collect()
 }
@@ -745,15 +749,10 @@ pub fn plot(runs: &[PathBuf], out: &Path, options: &PlotOptions) -> anyhow::Resu
             if run.skipped == 1 { "" } else { "s" }
         );
     }
-    draw(&Figure::new(&runs, options, false)?, out, options.replace)
+    draw(&Figure::new(&runs, options, false)?, out, options.place)
 }
 
-fn draw(figure: &Figure<'_>, out: &Path, replace: bool) -> anyhow::Result<()> {
-    let place = if replace {
-        apo_train::atomic::Place::ReplacePlainFile
-    } else {
-        apo_train::atomic::Place::New
-    };
+fn draw(figure: &Figure<'_>, out: &Path, place: apo_train::atomic::Place) -> anyhow::Result<()> {
     render_image(out, SIZE, &|a| figure.draw(a), &|a| figure.draw(a), place)
 }
 
@@ -814,7 +813,7 @@ pub fn plot_seed_groups(
         .iter()
         .map(|(label, dirs)| Run::seeds(label, dirs, options.smooth))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    draw(&Figure::new(&runs, options, true)?, out, options.replace)
+    draw(&Figure::new(&runs, options, true)?, out, options.place)
 }
 
 #[cfg(test)]
@@ -830,6 +829,18 @@ mod tests {
         assert_eq!(moving_average(&[1.0, 7.0], 1), [1.0, 7.0]);
         assert_eq!(moving_average(&[2.0, 4.0], 10), [2.0, 3.0]);
         assert!(moving_average(&[], 3).is_empty());
+        // any window, against the direct mean of each window's values
+        let values: Vec<f64> = (0..200).map(|i| ((i * 37) % 101) as f64 - 50.5).collect();
+        for window in [1, 2, 7, 64, 100, 1000] {
+            for (i, got) in moving_average(&values, window).iter().enumerate() {
+                let terms = &values[(i + 1).saturating_sub(window)..=i];
+                let want = terms.iter().sum::<f64>() / terms.len() as f64;
+                assert!(
+                    (got - want).abs() < 1e-12,
+                    "window {window}, {i}: {got} vs {want}"
+                );
+            }
+        }
         assert_eq!(
             moving_average(&[1e308, 1e308], 2),
             [1e308, 1e308],

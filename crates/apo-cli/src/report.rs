@@ -1085,8 +1085,7 @@ pub fn write(
             &crate::plot::PlotOptions {
                 smooth,
                 column: None,
-                // the report's own figure, there from an earlier report
-                replace: places.of(&curves(env)) == apo_train::atomic::Place::ReplacePlainFile,
+                place: places.of(&curves(env)),
             },
         )?;
         written.push(path);

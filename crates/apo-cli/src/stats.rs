@@ -256,14 +256,14 @@ fn iqm_without_each_task(scores: &Scores) -> Vec<f64> {
 
 /// Sums of ranges of a list in `O(log n)` each, as a tree of pairwise sums (so a range's sum
 /// has the rounding error of the values in it, not of a running total before it).
-struct RangeSum {
+pub(crate) struct RangeSum {
     size: usize,
     /// The tree, `1` its root, leaves from `size`.
     nodes: Vec<f64>,
 }
 
 impl RangeSum {
-    fn new(values: impl ExactSizeIterator<Item = f64>) -> Self {
+    pub(crate) fn new(values: impl ExactSizeIterator<Item = f64>) -> Self {
         let size = values.len().next_power_of_two().max(1);
         let mut nodes = vec![0.0; 2 * size];
         for (i, v) in values.enumerate() {
@@ -276,7 +276,7 @@ impl RangeSum {
     }
 
     /// The sum of the values at `from..to`.
-    fn sum(&self, from: usize, to: usize) -> f64 {
+    pub(crate) fn sum(&self, from: usize, to: usize) -> f64 {
         let (mut lo, mut hi) = (from + self.size, to + self.size);
         let (mut left, mut right) = (0.0, 0.0);
         while lo < hi {
@@ -555,6 +555,9 @@ pub struct Analysis {
 /// `f64` (the statistics add, subtract and square them).
 pub const MAX_SCORE: f64 = 1e150;
 
+/// The longest algorithm or task name of a score file, in bytes (the tables print each).
+pub const MAX_NAME: usize = 200;
+
 /// The most algorithms a comparison may have: it estimates every ordered pair's probability
 /// of improvement, `a (a − 1)` estimates.
 pub const MAX_ALGORITHMS: usize = 100;
@@ -607,6 +610,13 @@ pub fn read_scores(text: &str) -> anyhow::Result<Comparison> {
         let (algorithm, task) = (field(a), field(t));
         if algorithm.is_empty() || task.is_empty() {
             anyhow::bail!("line {line}: empty algorithm or task");
+        }
+        if let Some(long) = [algorithm, task].into_iter().find(|n| n.len() > MAX_NAME) {
+            anyhow::bail!(
+                "line {line}: the name `{}` is {} bytes; an algorithm's or a task's name is 1..={MAX_NAME} bytes",
+                excerpt(long),
+                long.len()
+            );
         }
         let t = match task_index.get(task) {
             Some(&t) => t,
@@ -1095,5 +1105,12 @@ mod tests {
             )) && err.contains("1..=100"),
             "{err}"
         );
+        // a name is bounded too, and quoted as an excerpt
+        let long = "n".repeat(10_000);
+        let err = format!(
+            "{:#}",
+            read_scores(&format!("algorithm,task,score\n{long},A,1\n")).unwrap_err()
+        );
+        assert!(err.contains("is 10000 bytes") && err.len() < 300, "{err}");
     }
 }

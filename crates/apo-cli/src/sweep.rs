@@ -151,6 +151,12 @@ pub fn parse_seeds(text: &str, max: u64) -> anyhow::Result<Vec<u64>> {
                 a.trim().parse().with_context(bad)?,
                 b.trim().parse().with_context(bad)?,
             );
+            if a > i64::MAX as u64 {
+                bail!(
+                    "--seeds {shown}: seed {a} is out of the range 0..={}",
+                    i64::MAX
+                );
+            }
             if b <= a {
                 bail!(
                     "--seeds {shown} is an empty range: its end is excluded, so it must be above its start \
@@ -394,8 +400,8 @@ pub fn expand(spec: &SweepSpec, epochs: usize, max_runs: u64) -> anyhow::Result<
     let max_runs = max_runs.min(MAX_RUNS);
     if count > max_runs {
         bail!(
-            "the sweep has {count} runs ({} environments × {} algorithms × grid cells × {} seeds), more than \
-             {max_runs}; raise the limit with --max-runs if that is meant",
+            "the sweep has {count} runs ({} environments × {} algorithms × their grid cells × {} seeds), more \
+             than {max_runs}; raise the limit with --max-runs (up to {MAX_RUNS}) if that is meant",
             spec.envs.len(),
             algos.len(),
             spec.seeds.len()

@@ -51,6 +51,30 @@ pub enum Place {
     /// Over a plain file or nothing: a link, a folder or a special file at the target then
     /// stays and the placement fails. For apo's own files and `--force`.
     ReplacePlainFile,
+    /// Over the very file apo found there when it checked (its device and inode, from
+    /// [`file_id`]) or nothing: anything else at the target then — a file put in its place
+    /// meanwhile included — stays and the placement fails. For an output apo wrote before in a
+    /// folder the user named.
+    ReplaceOwn {
+        /// The file's device and inode when apo checked it.
+        id: (u64, u64),
+    },
+}
+
+/// The device and inode of the plain file at `path` (not followed), which name that file
+/// while it exists ([`Place::ReplaceOwn`]); `None` for anything else or nothing.
+pub fn file_id(path: &Path) -> Option<(u64, u64)> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        meta.is_file().then(|| (meta.dev(), meta.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = meta;
+        None
+    }
 }
 
 /// Moves the finished temporary file `tmp` to `path` as `how` says, atomically: on Linux by
@@ -81,18 +105,26 @@ pub fn place(tmp: &Path, path: &Path, how: Place) -> std::io::Result<()> {
         }
         Err(_) => {}
     }
-    // something is there: swap, and keep the swap only when a plain file came out
+    // what may be replaced, judged by what is found there: `None` when it may
+    let refused = |at: &Path| match (not_plain(at), how) {
+        (Some(kind), _) => Some(format!("is {kind}")),
+        (None, Place::ReplaceOwn { id }) if file_id(at) != Some(id) => {
+            Some("is not the file apo wrote there (it was replaced while apo worked)".to_string())
+        }
+        _ => None,
+    };
+    // something is there: swap, and keep the swap only when what came out may be replaced
     match exchange(tmp, path) {
-        Ok(()) => match not_plain(tmp) {
+        Ok(()) => match refused(tmp) {
             None => std::fs::remove_file(tmp),
-            Some(kind) => {
+            Some(why) => {
                 exchange(tmp, path)?;
-                Err(appeared(&format!("is {kind}")))
+                Err(appeared(&why))
             }
         },
-        Err(e) if unsupported(&e) => match not_plain(path) {
+        Err(e) if unsupported(&e) => match refused(path) {
             None => std::fs::rename(tmp, path),
-            Some(kind) => Err(appeared(&format!("is {kind}"))),
+            Some(why) => Err(appeared(&why)),
         },
         Err(e) => Err(e),
     }
@@ -561,5 +593,22 @@ mod tests {
         }
         assert_eq!(std::fs::read(&theirs).expect("read"), b"theirs");
         assert!(!nowhere.exists());
+        // ReplaceOwn replaces the very file it found, not one put in its place meanwhile
+        let own = tmp.path().join("own.csv");
+        std::fs::write(&own, b"apo's").expect("write");
+        let id = file_id(&own).expect("a plain file");
+        let t = temp(b"next");
+        place(&t, &own, Place::ReplaceOwn { id }).expect("the same file");
+        assert_eq!(std::fs::read(&own).expect("read"), b"next");
+        let id = file_id(&own).expect("a plain file");
+        std::fs::remove_file(&own).expect("rm");
+        std::fs::write(&own, b"the user's").expect("write");
+        let t = temp(b"again");
+        let err = place(&t, &own, Place::ReplaceOwn { id }).unwrap_err();
+        assert!(
+            err.to_string().contains("is not the file apo wrote there"),
+            "{err}"
+        );
+        assert_eq!(std::fs::read(&own).expect("read"), b"the user's");
     }
 }

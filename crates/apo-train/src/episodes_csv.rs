@@ -14,7 +14,7 @@ use crate::ProgressRow;
 pub use crate::{EpisodeRecord, Phase};
 use anyhow::Context;
 
-/// Every column of apo's episode file, in its order; all but `success` are required.
+/// Every column of apo's episode file, in its order (the one header it has written).
 pub const COLUMNS: [&str; 9] = [
     "epoch", "phase", "env", "seed", "nth", "return", "length", "unstable", "success",
 ];
@@ -24,24 +24,23 @@ pub const COLUMNS: [&str; 9] = [
 fn open(path: &Path) -> anyhow::Result<(csv::StringRecord, crate::input::CsvReader)> {
     const WHAT: &str = "episode file";
     let (headers, reader) = crate::input::open_csv(path, WHAT)?;
-    crate::input::check_header(path, WHAT, &headers, &COLUMNS, &COLUMNS[..8])?;
+    crate::input::check_header(path, WHAT, &headers, &[COLUMNS.to_vec()])?;
     Ok((headers, reader))
 }
 
-/// Reads an `episodes.csv` whole: every row must parse.
+/// Reads an `episodes.csv` whole, as a resumed run continues it: the records of
+/// [`read_lenient`], and an error where it would leave one out (one that does not parse,
+/// repeats an earlier record or holds a non-finite return).
 ///
 /// # Errors
-/// A file that cannot be read, or a row that does not parse, naming the file and the line.
+/// A file that cannot be read, a header the readers refuse, or such a record, naming the file
+/// and the line.
 pub fn read(path: &Path) -> anyhow::Result<Vec<EpisodeRecord>> {
-    let (headers, mut reader) = open(path)?;
-    reader
-        .records()
-        .enumerate()
-        .map(|(i, record)| {
-            crate::input::csv_record(record, &headers)
-                .map_err(|why| anyhow::anyhow!("{}: line {}: {why}", path.display(), i + 2))
-        })
-        .collect()
+    let episodes = read_lenient(path)?;
+    if let Some(first) = episodes.left_out.first() {
+        anyhow::bail!("{}: {first}", path.display());
+    }
+    Ok(episodes.records)
 }
 
 /// An `episodes.csv` read for reporting: the records kept, and one line per record left out.
@@ -53,8 +52,9 @@ pub struct Episodes {
     pub left_out: Vec<String>,
 }
 
-/// Reads an `episodes.csv` for reporting: a record that does not parse or holds a non-finite
-/// return is left out and named in [`Episodes::left_out`].
+/// Reads an `episodes.csv` for reporting: a record that does not parse, holds a non-finite
+/// return or repeats an earlier one (the same epoch, phase, environment and episode number:
+/// counted once) is left out and named in [`Episodes::left_out`].
 ///
 /// # Errors
 /// A file that cannot be read, or one of which no record parses (not an episode file).
@@ -62,13 +62,21 @@ pub fn read_lenient(path: &Path) -> anyhow::Result<Episodes> {
     let (headers, mut reader) = open(path)?;
     let mut episodes = Episodes::default();
     let mut first_error = None;
+    // each record's (epoch, phase, environment, episode number), and its line
+    let mut seen = BTreeMap::new();
     for (i, record) in reader.records().enumerate() {
         let line = i + 2;
         match crate::input::csv_record::<EpisodeRecord>(record, &headers) {
-            Ok(r) if r.ret.is_finite() => episodes.records.push(r),
-            Ok(r) => episodes
+            Ok(r) if !r.ret.is_finite() => episodes
                 .left_out
                 .push(format!("line {line}: return = {}", r.ret)),
+            Ok(r) => match seen.insert((r.epoch, r.phase, r.env, r.nth), line) {
+                None => episodes.records.push(r),
+                Some(first) => episodes.left_out.push(format!(
+                    "line {line}: repeats the record of line {first} (epoch {}, {:?}, env {}, episode {})",
+                    r.epoch, r.phase, r.env, r.nth
+                )),
+            },
             Err(why) => {
                 first_error.get_or_insert_with(|| format!("line {line}: {why}"));
                 episodes.left_out.push(format!("line {line}: {why}"));
@@ -300,6 +308,14 @@ mod tests {
             format!("{:#}", read_lenient(&path).unwrap_err()),
             format!("{:#}", read(&path).unwrap_err())
         );
+        // a record repeated: counted once by the readers, refused by resume, naming both lines
+        let once = String::from_utf8(whole.clone()).expect("text");
+        let line = once.lines().nth(1).expect("a record").to_string();
+        std::fs::write(&path, format!("{once}{line}\n")).expect("write");
+        let lenient = read_lenient(&path).expect("records");
+        assert_eq!(lenient.records.len(), once.lines().count() - 1);
+        let err = format!("{:#}", EpisodeLog::resume(&path, 9).unwrap_err());
+        assert!(err.contains("repeats the record of line 2"), "{err}");
         // a record that does not parse is named by its line
         std::fs::write(
             &path,

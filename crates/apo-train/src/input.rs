@@ -367,34 +367,29 @@ pub fn clip(text: &str, chars: usize) -> String {
     }
 }
 
-/// Checks the header of the record file at `path` (a `what`): every column is one of `known`,
-/// none is repeated and every one of `required` is there. Every reader of the file checks it,
-/// the one that resumes a run included, so that a header a reader refuses is never read over.
+/// Checks the header of the record file at `path` (a `what`): it must be one of the headers
+/// apo has written, `versions` (newest first, each a list of columns in order). Every reader
+/// of the file checks it, the one that resumes a run included, so that a header a reader
+/// refuses is never read over, and a column taken out of a file is never filled in blank.
 ///
 /// # Errors
-/// Naming the file, the column (by position and name, in an [`excerpt`]) and the columns the
-/// file takes.
+/// Naming the file and the first column that is not apo's (by position and name, in an
+/// [`excerpt`]), repeated, missing or out of its place, and the columns apo writes.
 pub fn check_header(
     path: &Path,
     what: &str,
     headers: &csv::StringRecord,
-    known: &[&str],
-    required: &[&str],
+    versions: &[Vec<&str>],
 ) -> anyhow::Result<()> {
-    let takes = || {
-        format!(
-            "apo's {what} has the columns {} (the first {} required)",
-            known.join(","),
-            required.len()
-        )
-    };
     // an empty file has no header to check (and no records: its readers say what is missing)
     if headers.is_empty() {
         return Ok(());
     }
+    let newest = versions.first().map_or(&[][..], Vec::as_slice);
+    let takes = || format!("apo's {what} has the columns {}", newest.join(","));
     let mut seen = std::collections::BTreeSet::new();
     for (i, column) in headers.iter().enumerate() {
-        if !known.contains(&column) {
+        if !newest.contains(&column) {
             bail!(
                 "{}: column {} of the header, `{}`, is not a column of apo's {what}; {}",
                 path.display(),
@@ -415,14 +410,40 @@ pub fn check_header(
             );
         }
     }
-    if let Some(missing) = required.iter().find(|c| !seen.contains(**c)) {
-        bail!(
-            "{} is not apo's {what}: it has no `{missing}` column; {}",
+    if versions
+        .iter()
+        .any(|v| headers.iter().eq(v.iter().copied()))
+    {
+        return Ok(());
+    }
+    // the version it is closest to: the one that holds every column it has
+    let closest = versions
+        .iter()
+        .rev()
+        .find(|v| headers.iter().all(|h| v.contains(&h)))
+        .map_or(newest, Vec::as_slice);
+    match closest.iter().find(|c| !seen.contains(**c)) {
+        Some(missing) => bail!(
+            "{} is not apo's {what}: it has no `{missing}` column (a column taken out of the file is not \
+             read over); {}",
             path.display(),
             takes()
-        );
+        ),
+        None => {
+            let (i, (found, want)) = headers
+                .iter()
+                .zip(closest.iter().copied())
+                .enumerate()
+                .find(|(_, (h, c))| h != c)
+                .unwrap_or((0, ("", "")));
+            bail!(
+                "{}: column {} of the header is `{found}` where apo writes `{want}` (the columns were reordered); {}",
+                path.display(),
+                i + 1,
+                takes()
+            )
+        }
     }
-    Ok(())
 }
 
 /// A reader of one of apo's record files, read whole into memory.

@@ -18,9 +18,6 @@ use std::path::Path;
 
 pub use crate::metrics::{EpochTimes, ProgressRow, TIME_COLUMNS};
 
-/// The columns every `progress.csv` of apo has, first in its header.
-const REQUIRED_COLUMNS: [&str; 4] = ["epoch", "env_steps", "episodes", "ep_ret_mean"];
-
 /// A progress file read for reporting: the rows kept and why the others were left out.
 #[derive(Debug, Clone, Default)]
 pub struct Progress {
@@ -63,24 +60,52 @@ pub fn columns() -> Vec<String> {
         .collect()
 }
 
-/// The file's header, checked ([`crate::input::check_header`]), and a reader of its records.
+/// The columns the time and evaluation columns were added before: a progress file of an
+/// earlier apo has the current columns without `sim_s` (the simulator's time), or without it
+/// and the evaluation's columns.
+const ADDED_LATER: [&[&str]; 2] = [
+    &["sim_s"],
+    &[
+        "sim_s",
+        "eval_ret_mean",
+        "eval_ret_min",
+        "eval_ret_cvar10",
+        "eval_ret_std",
+        "eval_len_mean",
+        "eval_unstable_episodes",
+        "eval_s",
+    ],
+];
+
+/// The file's header, checked to be one apo wrote ([`crate::input::check_header`]: the
+/// current columns, or an earlier apo's, [`ADDED_LATER`]), and a reader of its records.
 fn open(path: &Path) -> anyhow::Result<(csv::StringRecord, crate::input::CsvReader)> {
     const WHAT: &str = "progress file";
     let (headers, reader) = crate::input::open_csv(path, WHAT)?;
-    let known = columns();
-    let known: Vec<&str> = known.iter().map(String::as_str).collect();
-    crate::input::check_header(path, WHAT, &headers, &known, &REQUIRED_COLUMNS)?;
+    let current = columns();
+    let mut versions: Vec<Vec<&str>> = vec![current.iter().map(String::as_str).collect()];
+    for later in ADDED_LATER {
+        versions.push(
+            current
+                .iter()
+                .map(String::as_str)
+                .filter(|c| !later.contains(c))
+                .collect(),
+        );
+    }
+    crate::input::check_header(path, WHAT, &headers, &versions)?;
     Ok((headers, reader))
 }
 
-/// Reads a `progress.csv` whole, as a resumed run continues it: the rows of [`read_lenient`]
-/// (non-finite values kept), and an error where it would leave a row out.
+/// Reads a `progress.csv` whole, as a resumed run continues it: the rows of [`read_lenient`],
+/// and an error where it would leave a row out (one that does not parse, repeats or goes back
+/// on an epoch, or holds a non-finite return statistic).
 ///
 /// # Errors
 /// A file that cannot be read, a header the readers refuse, or a row that does not parse or
 /// repeats or goes back on an epoch, naming the file, the line, the column and the value.
 pub fn read(path: &Path) -> anyhow::Result<Vec<ProgressRow>> {
-    let progress = read_lenient(path, true)?;
+    let progress = read_lenient(path, false)?;
     if let Some(first) = progress.left_out.first() {
         anyhow::bail!("{}: {first}", path.display());
     }
@@ -372,6 +397,42 @@ mod tests {
                 whole.len()
             );
         }
+        // a column taken out (not a header any apo wrote) is refused by name; an earlier apo's
+        // header (before `sim_s`) is read
+        for (drop, says) in [
+            ("ep_ret_min", Some("has no `ep_ret_min` column")),
+            ("sim_s", None),
+        ] {
+            let mut lines: Vec<String> = Vec::new();
+            let at = header.split(',').position(|c| c == drop).expect("a column");
+            for line in good.lines() {
+                let mut cells: Vec<&str> = line.split(',').collect();
+                cells.remove(at);
+                lines.push(cells.join(","));
+            }
+            std::fs::write(&path, lines.join("\n") + "\n").expect("write");
+            match says {
+                Some(says) => {
+                    let whole = format!("{:#}", read(&path).unwrap_err());
+                    assert!(whole.contains(says), "{whole}");
+                    assert_eq!(
+                        whole,
+                        format!("{:#}", read_lenient(&path, true).unwrap_err())
+                    );
+                }
+                None => assert_eq!(read(&path).expect("an earlier header").len(), 3),
+            }
+        }
+        // a non-finite return statistic: left out by the readers, refused by resume
+        let mut nan = rows.clone();
+        nan[1].ep_ret_mean = Some(f64::NAN);
+        write(&path, &nan).expect("write");
+        assert_eq!(read_lenient(&path, false).expect("rows").left_out.len(), 1);
+        let whole = format!("{:#}", read(&path).unwrap_err());
+        assert!(
+            whole.contains("line 3: epoch 2 has ep_ret_mean = NaN"),
+            "{whole}"
+        );
         let without: Vec<&str> = header.split(',').filter(|c| *c != "episodes").collect();
         let mut text = without.join(",") + "\n";
         for line in good.lines().skip(1) {

@@ -435,11 +435,11 @@ where
                     if writer {
                         check_rows(&on_disk, &state, &progress_path, &from)?;
                         episodes = EpisodeLog::resume(&episodes_path, state.run.epoch)?;
-                        if let Some(counted) = state.episode_records.filter(|&n| n > episodes.records()) {
+                        if let Some(counted) = state.episode_records.filter(|&n| n != episodes.records()) {
                             bail!(
                                 "{} holds {} episode records of epochs 1..={}, the checkpoint in {} counted {counted} \
-                                 (was the file deleted, emptied or edited?). Resuming would lose them; restore the file, \
-                                 or start a new run with another --out",
+                                 (was the file deleted, emptied or edited?). Resuming would continue a record that is not \
+                                 the run's; restore the file, or start a new run with another --out",
                                 episodes_path.display(),
                                 episodes.records(),
                                 state.run.epoch,

@@ -169,8 +169,8 @@ pub fn own_videos(run: &Path) -> anyhow::Result<PathBuf> {
 /// by apo: `report.md`, …), checks that none of them exists unless an earlier apo wrote it
 /// (listed in `dir/marker`), then lists them there: apo overwrites its own outputs, never a
 /// user's file of the same name. Returns how each is to take its place ([`OutputPlaces`]): a
-/// name that is there now (apo's earlier output) replaces a plain file, any other only
-/// nothing — a file that appears there while apo works stays.
+/// name that is there now (apo's earlier output) replaces that very file, any other only
+/// nothing — a file that appears there, or takes the place of apo's, while apo works stays.
 ///
 /// # Errors
 /// Naming a file apo would overwrite but did not write, or when the marker cannot be written.
@@ -178,8 +178,7 @@ pub fn claim_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Resu
     check_outputs(dir, marker, names)?;
     let present = names
         .iter()
-        .filter(|n| std::fs::symlink_metadata(dir.join(n)).is_ok())
-        .cloned()
+        .filter_map(|n| Some((n.clone(), crate::atomic::file_id(&dir.join(n))?)))
         .collect();
     let mut listed = created_entries_in(dir, marker)?.unwrap_or_default();
     listed.extend(names.iter().cloned());
@@ -190,17 +189,18 @@ pub fn claim_outputs(dir: &Path, marker: &str, names: &[String]) -> anyhow::Resu
 /// How the outputs [`claim_outputs`] claimed take their places.
 #[derive(Debug, Clone, Default)]
 pub struct OutputPlaces {
-    /// The names apo wrote before and finds there: replaced as plain files.
-    present: BTreeSet<String>,
+    /// The names apo wrote before and finds there, with the files' device and inode: each
+    /// replaces that very file only.
+    present: std::collections::BTreeMap<String, (u64, u64)>,
 }
 
 impl OutputPlaces {
-    /// How the output `name` takes its place.
+    /// How the output `name` takes its place: over the file apo wrote before
+    /// ([`crate::atomic::Place::ReplaceOwn`]), or where nothing is.
     pub fn of(&self, name: &str) -> crate::atomic::Place {
-        if self.present.contains(name) {
-            crate::atomic::Place::ReplacePlainFile
-        } else {
-            crate::atomic::Place::New
+        match self.present.get(name) {
+            Some(&id) => crate::atomic::Place::ReplaceOwn { id },
+            None => crate::atomic::Place::New,
         }
     }
 }

@@ -27,10 +27,16 @@ fn resume_refuses_an_episode_record_that_lost_what_the_checkpoint_counted() {
     let episodes = run.join("episodes.csv");
     let saved = std::fs::read_to_string(&episodes).expect("episodes.csv");
     let cut: String = saved.lines().take(3).map(|l| format!("{l}\n")).collect();
-    for (case, content) in [
-        ("deleted", None),
-        ("emptied", Some(String::new())),
-        ("cut", Some(cut)),
+    let doubled = format!("{saved}{}\n", saved.lines().nth(1).expect("a record"));
+    for (case, content, says) in [
+        ("deleted", None, "counted"),
+        ("emptied", Some(String::new()), "counted"),
+        ("cut", Some(cut), "counted"),
+        (
+            "a record repeated",
+            Some(doubled),
+            "repeats the record of line 2",
+        ),
     ] {
         match &content {
             None => std::fs::remove_file(&episodes).expect("rm"),
@@ -38,7 +44,7 @@ fn resume_refuses_an_episode_record_that_lost_what_the_checkpoint_counted() {
         }
         let err = fails(&["train", "--resume", path(&run), "--epochs", "4", "--quiet"]);
         assert!(
-            err.contains("episodes.csv") && err.contains("counted"),
+            err.contains("episodes.csv") && err.contains(says),
             "{case}: {err}"
         );
         assert_eq!(timeless(&run).len(), 3, "{case}: progress.csv kept");

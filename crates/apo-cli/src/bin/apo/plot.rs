@@ -31,7 +31,11 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
         &apo_cli::plot::PlotOptions {
             smooth: args.smooth,
             column: args.column.clone(),
-            replace: args.force,
+            place: if args.force {
+                apo_train::atomic::Place::ReplacePlainFile
+            } else {
+                apo_train::atomic::Place::New
+            },
         },
     )?;
     apo_cli::outln!("wrote {}", args.out.display())?;
