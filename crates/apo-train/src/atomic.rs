@@ -13,7 +13,7 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     write_placed(path, bytes, Place::ReplacePlainFile)
 }
 
-/// [`write`], placed as `how` says: with [`Place::New`] nothing at `path` is ever replaced,
+/// [`write()`], placed as `how` says: with [`Place::New`] nothing at `path` is ever replaced,
 /// not even what appears there while the bytes are written.
 pub fn write_placed(path: &Path, bytes: &[u8], how: Place) -> std::io::Result<()> {
     // apo replaces only plain files: a link (every link is the user's), a folder or a special

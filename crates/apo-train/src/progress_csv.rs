@@ -43,7 +43,7 @@ pub fn gaps(epochs: impl IntoIterator<Item = usize>) -> Vec<(usize, usize)> {
     missing
 }
 
-/// Every column of apo's progress file, in the order [`write`] gives them.
+/// Every column of apo's progress file, in the order [`write()`] gives them.
 pub fn columns() -> Vec<String> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     // serializing a row writes the header first
