@@ -53,8 +53,8 @@ pub struct Episodes {
 }
 
 /// Reads an `episodes.csv` for reporting: a record that does not parse, holds a non-finite
-/// return or repeats an earlier one (the same epoch, phase, environment and episode number:
-/// counted once) is left out and named in [`Episodes::left_out`].
+/// return or repeats an earlier one (the same epoch, phase, environment, seed and episode
+/// number: counted once) is left out and named in [`Episodes::left_out`].
 ///
 /// # Errors
 /// A file that cannot be read, or one of which no record parses (not an episode file).
@@ -62,7 +62,8 @@ pub fn read_lenient(path: &Path) -> anyhow::Result<Episodes> {
     let (headers, mut reader) = open(path)?;
     let mut episodes = Episodes::default();
     let mut first_error = None;
-    // each record's (epoch, phase, environment, episode number), and its line
+    // each record's (epoch, phase, environment, seed, episode number), and its line: an
+    // evaluation's episodes differ by their seeds only
     let mut seen = BTreeMap::new();
     for (i, record) in reader.records().enumerate() {
         let line = i + 2;
@@ -70,11 +71,11 @@ pub fn read_lenient(path: &Path) -> anyhow::Result<Episodes> {
             Ok(r) if !r.ret.is_finite() => episodes
                 .left_out
                 .push(format!("line {line}: return = {}", r.ret)),
-            Ok(r) => match seen.insert((r.epoch, r.phase, r.env, r.nth), line) {
+            Ok(r) => match seen.insert((r.epoch, r.phase, r.env, r.seed, r.nth), line) {
                 None => episodes.records.push(r),
                 Some(first) => episodes.left_out.push(format!(
-                    "line {line}: repeats the record of line {first} (epoch {}, {:?}, env {}, episode {})",
-                    r.epoch, r.phase, r.env, r.nth
+                    "line {line}: repeats the record of line {first} (epoch {}, {:?}, env {}, seed {}, episode {})",
+                    r.epoch, r.phase, r.env, r.seed, r.nth
                 )),
             },
             Err(why) => {
