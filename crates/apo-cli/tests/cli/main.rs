@@ -138,8 +138,19 @@ pub fn mkfifo(place: &Path) {
     assert!(made.success(), "mkfifo {}", place.display());
 }
 
+/// Starts `apo args` with SIGHUP at its default, as from a terminal, whatever the test runner
+/// was started with (under `nohup` apo keeps ignoring a SIGHUP ignored from the start).
 pub fn spawn(args: &[&str]) -> Child {
-    Command::new(env!("CARGO_BIN_EXE_apo"))
+    use std::os::unix::process::CommandExt;
+    let mut command = Command::new(env!("CARGO_BIN_EXE_apo"));
+    // SAFETY: between fork and exec only `signal`, which is async-signal-safe, is called
+    unsafe {
+        command.pre_exec(|| {
+            libc::signal(libc::SIGHUP, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    command
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
